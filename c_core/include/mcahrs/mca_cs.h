@@ -1,0 +1,112 @@
+/**
+ * @file mca_cs.h
+ * @brief Current-statistical (CS) maneuver-acceleration filter: one 5-state Kalman
+ *        filter per NED axis (DESIGN.md section 3, docs/ALGORITHMS.md sections 2-3).
+ *
+ * Axis state x = [p, v, a, eps_p, eps_v]: position (m), velocity (m/s), acceleration
+ * (m/s^2), GPS position error (m) and GPS velocity error (m/s), both first-order
+ * Gauss-Markov. Mean propagation is the constant-acceleration step (eq. 17), covariance
+ * the exact CS transition with the exact Singer Q, evaluated by a Taylor series below
+ * alpha*T = MCA_CS_SERIES_X so float32 does not cancel.
+ */
+#ifndef MCA_CS_H
+#define MCA_CS_H
+
+#include "mca_robust.h"
+
+/** alpha*T below which the Singer Q and Phi13 use their Taylor series. */
+#define MCA_CS_SERIES_X 2.0f
+
+/** Mask bits of a CS update. */
+#define MCA_CS_POS 1
+#define MCA_CS_VEL 2
+
+/** Scratch floats one CS axis update needs. */
+#define MCA_CS_WS_LEN MCA_KF_WS_LEN(MCA_CS_NX, MCA_CS_NZ)
+
+/** Configuration of one axis. Defaults from mca_cs_config_default_h/_v. */
+typedef struct {
+    float tau_a_s;          /**< maneuver correlation time, alpha = 1/tau_a, > 0 */
+    float tau_p_s;          /**< GPS position error correlation time, beta = 1/tau_p, > 0 */
+    float tau_v_s;          /**< GPS velocity error correlation time, gamma = 1/tau_v, > 0 */
+    float sigma_p_m;        /**< GPS position Gauss-Markov error std, >= 0 */
+    float sigma_v_mps;      /**< GPS velocity Gauss-Markov error std, >= 0 */
+    float sigma_a0_mps2;    /**< fixed maneuver std (and adaptive when abar == 0), > 0 */
+    float a_max_mps2;       /**< maximum maneuver acceleration (adaptive), > 0 */
+    float sigma_a_min_mps2; /**< floor of the adaptive maneuver std, > 0 */
+    float p0_var_m2;        /**< initial position variance, > 0 */
+    float v0_var_m2ps2;     /**< initial velocity variance, > 0 */
+    float a0_var_m2ps4;     /**< initial acceleration variance, > 0 */
+    float dt_max_s;         /**< longest accepted predict step, > 0 */
+    uint8_t adaptive;       /**< 0 fixed sigma_a0, 1 current-statistical adaptive */
+} mca_cs_config_t;
+
+/** One axis. Owns its state; scratch is passed in by the caller (see mca_cs3_t). */
+typedef struct {
+    float x[MCA_CS_NX];             /**< [p, v, a, eps_p, eps_v] */
+    float p[MCA_CS_NX * MCA_CS_NX]; /**< covariance, row-major, symmetric */
+    float s2_m2ps4;                 /**< maneuver variance used by the last predict */
+    mca_cs_config_t cfg;
+} mca_cs_axis_t;
+
+/** Three axes N, E, D and the scratch space they share. */
+typedef struct {
+    mca_cs_axis_t axis[3];
+    float ws[MCA_CS_WS_LEN];
+} mca_cs3_t;
+
+/** Horizontal (N, E) defaults of docs/ALGORITHMS.md section 2. */
+void mca_cs_config_default_h(mca_cs_config_t *cfg);
+/** Vertical (D) defaults of docs/ALGORITHMS.md section 2. */
+void mca_cs_config_default_v(mca_cs_config_t *cfg);
+
+/** @return MCA_OK or MCA_ERR_BAD_CONFIG when a field is out of its range. */
+mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg);
+
+/**
+ * Initialise one axis at position p0_m and velocity v0_mps (0 when unknown).
+ * @return MCA_ERR_BAD_CONFIG, MCA_ERR_NONFINITE, MCA_ERR_NULL, or MCA_OK.
+ */
+mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m, float v0_mps);
+
+/** Maneuver variance for acceleration mean abar (docs/ALGORITHMS.md 2, step 3). */
+float mca_cs_maneuver_var(const mca_cs_config_t *cfg, float abar_mps2);
+
+/**
+ * Exact CS transition Phi (5 x 5) and process noise Q (5 x 5) over t_s for maneuver
+ * variance s2 (DESIGN.md 3). Cost: ~200 flops, two expf, two expm1f.
+ */
+void mca_cs_transition(const mca_cs_config_t *cfg, float t_s, float s2_m2ps4, float phi[25], float q[25]);
+
+/** Singer 3 x 3 process noise block for alpha, t_s, and q = 2 alpha s2 (row-major). */
+void mca_cs_singer_q(float alpha_ps, float t_s, float s2_m2ps4, float q33[9]);
+
+/** Predict one axis over t_s. @return MCA_ERR_BAD_DT (state unchanged) or MCA_OK. */
+mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t_s);
+
+/**
+ * Update one axis with position z_p_m (variance r_p) and/or velocity z_v_mps (variance r_v)
+ * as selected by mask (MCA_CS_POS | MCA_CS_VEL). Unused values are ignored.
+ * @param[out] ws  MCA_CS_WS_LEN floats of scratch
+ * @return MCA_ERR_BAD_MASK, MCA_ERR_NONFINITE, MCA_ERR_BAD_ARG (variance <= 0),
+ *         MCA_ERR_SINGULAR, or MCA_OK. On error the axis is unchanged.
+ */
+mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p_m, float z_v_mps, float r_p_m2,
+                                float r_v_m2ps2, uint8_t mask, float *ws, mca_update_report_t *rep);
+
+/** Initialise N, E with cfg_h and D with cfg_v at pos_ned_m, vel_ned_mps (may be NULL: 0). */
+mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
+                          const float pos_ned_m[3], const float vel_ned_mps[3]);
+
+/** Predict all three axes over t_s; a bad t_s changes none. */
+mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t_s);
+
+/**
+ * Update the three axes; per-axis masks, an axis with mask 0 is skipped, all-zero is
+ * MCA_ERR_BAD_MASK. Every axis is validated before any changes. rep (3 entries) may be NULL.
+ */
+mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos_ned_m[3], const float vel_ned_mps[3],
+                            const float r_pos_m2[3], const float r_vel_m2ps2[3], const uint8_t mask[3],
+                            mca_update_report_t rep[3]);
+
+#endif /* MCA_CS_H */

@@ -1,0 +1,85 @@
+/**
+ * @file mca_math.h
+ * @brief Status codes and the small float32 linear algebra the filters share.
+ *
+ * Matrices are row-major float arrays with their dimensions passed explicitly; every loop
+ * is bounded by those dimensions, which callers take from mca_config.h. No function here
+ * allocates memory or touches memory other than its arguments. Output arguments may not
+ * alias inputs unless said.
+ */
+#ifndef MCA_MATH_H
+#define MCA_MATH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mca_config.h"
+
+/** Result of every public function that can fail. docs/ALGORITHMS.md section 4. */
+typedef enum {
+    MCA_OK = 0,
+    MCA_ERR_NULL = 1,           /**< a required pointer is NULL */
+    MCA_ERR_BAD_DT = 2,         /**< step length not finite, <= 0 or above the configured maximum */
+    MCA_ERR_NONFINITE = 3,      /**< an input value is NaN or infinite */
+    MCA_ERR_SINGULAR = 4,       /**< innovation covariance not positive definite */
+    MCA_ERR_BAD_MASK = 5,       /**< measurement mask empty or with unknown bits */
+    MCA_ERR_BAD_ARG = 6,        /**< an argument outside its documented range */
+    MCA_ERR_BAD_CONFIG = 7,     /**< a configuration value outside its documented range */
+    MCA_ERR_TIME_BACKWARDS = 8, /**< a time stamp earlier than the last one accepted */
+    MCA_ERR_RANGE = 9,          /**< latitude/longitude/altitude out of range */
+    MCA_ERR_NOT_INIT = 10       /**< the filter has not been initialised */
+} mca_status_t;
+
+/** 1 when x is neither NaN nor infinite. Cost: a compare. */
+int mca_finite(float x);
+
+/** 1 when all n values are finite. Cost: n compares. */
+int mca_all_finite(const float *v, size_t n);
+
+/** c (r x k) = a (r x n) * b (n x k). c must not alias a or b. */
+void mca_mat_mul(float *c, const float *a, const float *b, size_t r, size_t n, size_t k);
+
+/** c (r x k) = a (r x n) * b^T, b being (k x n). c must not alias a or b. */
+void mca_mat_mul_bt(float *c, const float *a, const float *b, size_t r, size_t n, size_t k);
+
+/** a (n x n) = (a + a^T) / 2, in place. */
+void mca_mat_symmetrize(float *a, size_t n);
+
+/**
+ * Cholesky factor of a symmetric positive definite n x n matrix: a = l l^T, l lower
+ * triangular (upper part set to zero). Cost O(n^3/6). n <= MCA_MEAS_MAX.
+ * @return MCA_ERR_SINGULAR when a is not positive definite (or not finite); l is then
+ *         unspecified but finite.
+ */
+mca_status_t mca_cholesky(float *l, const float *a, size_t n);
+
+/** Solve l l^T x = b in place in b (n values), l from mca_cholesky. */
+void mca_cholesky_solve(const float *l, float *b, size_t n);
+
+/* ---- Quaternions [w, x, y, z], Hamilton, q_nb rotates body FRD to NED (DESIGN.md 2). ---- */
+
+/** r = p (x) q. r may not alias p or q. */
+void mca_quat_mul(float r[4], const float p[4], const float q[4]);
+
+/** Normalise in place; a zero or non-finite quaternion becomes identity. Returns the old norm. */
+float mca_quat_normalize(float q[4]);
+
+/** Unit quaternion of rotation vector rv (rad), exact (sin/cos), small-angle safe. */
+void mca_quat_from_rotvec(float q[4], const float rv_rad[3]);
+
+/** Direction cosine matrix C_nb (row-major 3 x 3) of unit quaternion q_nb: v_n = C_nb v_b. */
+void mca_quat_to_dcm(float c_nb[9], const float q_nb[4]);
+
+/**
+ * ZYX Euler angles of q_nb: roll phi in [-pi, pi], pitch theta in [-pi/2, pi/2],
+ * yaw psi in [-pi, pi]. euler_rad = {phi, theta, psi}.
+ */
+void mca_quat_to_euler(float euler_rad[3], const float q_nb[4]);
+
+/** q_nb from ZYX Euler angles {phi, theta, psi} (rad). */
+void mca_quat_from_euler(float q_nb[4], const float euler_rad[3]);
+
+/** Wrap an angle to [-pi, pi). */
+float mca_wrap_pi(float a_rad);
+
+#endif /* MCA_MATH_H */

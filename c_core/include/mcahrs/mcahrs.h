@@ -1,0 +1,13 @@
+/**
+ * @file mcahrs.h
+ * @brief Everything public, for the bindings and for a flight controller that wants it all.
+ */
+#ifndef MCAHRS_H
+#define MCAHRS_H
+
+#include "mca_config.h"
+#include "mca_math.h"
+#include "mca_robust.h"
+#include "mca_cs.h"
+
+#endif /* MCAHRS_H */

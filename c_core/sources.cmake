@@ -1,0 +1,15 @@
+# The one list of C core sources. The host library, the Python extension and the
+# Cortex-M4F firmware all build exactly these files.
+set(MCA_CORE_SOURCES
+    ${CMAKE_CURRENT_LIST_DIR}/src/mca_math.c
+    ${CMAKE_CURRENT_LIST_DIR}/src/mca_robust.c
+    ${CMAKE_CURRENT_LIST_DIR}/src/mca_cs.c
+)
+set(MCA_CORE_INCLUDE_DIR ${CMAKE_CURRENT_LIST_DIR}/include)
+# Warnings every build of the core uses (the issue's list plus a few that catch float bugs).
+set(MCA_C_WARNINGS
+    -Wall -Wextra -Werror -Wdouble-promotion -Wconversion -Wshadow -Wfloat-equal -Wvla
+    -Wstrict-prototypes -Wmissing-prototypes -pedantic
+)
+# Same float arithmetic on host and target: no fused multiply-add contraction.
+set(MCA_C_FLOAT_FLAGS -ffp-contract=off -fno-fast-math)

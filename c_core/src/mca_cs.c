@@ -1,0 +1,340 @@
+/* Current-statistical maneuver filter (DESIGN.md 3, docs/ALGORITHMS.md 2-3). See mca_cs.h. */
+#include "mcahrs/mca_cs.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "mca_cs_series.inc"
+
+#define MCA_PI_F 3.14159265358979f
+
+void mca_cs_config_default_h(mca_cs_config_t *cfg)
+{
+    cfg->tau_a_s = 2.0f;
+    cfg->tau_p_s = 60.0f;
+    cfg->tau_v_s = 5.0f;
+    cfg->sigma_p_m = 1.5f;
+    cfg->sigma_v_mps = 0.05f;
+    cfg->sigma_a0_mps2 = 1.0f;
+    cfg->a_max_mps2 = 6.0f;
+    cfg->sigma_a_min_mps2 = 0.05f;
+    cfg->p0_var_m2 = 25.0f;
+    cfg->v0_var_m2ps2 = 1.0f;
+    cfg->a0_var_m2ps4 = 1.0f;
+    cfg->dt_max_s = 10.0f;
+    cfg->adaptive = 1u;
+}
+
+void mca_cs_config_default_v(mca_cs_config_t *cfg)
+{
+    mca_cs_config_default_h(cfg);
+    cfg->sigma_p_m = 3.0f;
+    cfg->sigma_v_mps = 0.08f;
+    cfg->sigma_a0_mps2 = 0.5f;
+    cfg->a_max_mps2 = 3.0f;
+}
+
+static int positive(float v)
+{
+    return isfinite(v) && v > 0.0f;
+}
+
+mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
+{
+    if (cfg == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!positive(cfg->tau_a_s) || !positive(cfg->tau_p_s) || !positive(cfg->tau_v_s) ||
+        !isfinite(cfg->sigma_p_m) || cfg->sigma_p_m < 0.0f || !isfinite(cfg->sigma_v_mps) ||
+        cfg->sigma_v_mps < 0.0f || !positive(cfg->sigma_a0_mps2) || !positive(cfg->a_max_mps2) ||
+        !positive(cfg->sigma_a_min_mps2) || !positive(cfg->p0_var_m2) || !positive(cfg->v0_var_m2ps2) ||
+        !positive(cfg->a0_var_m2ps4) || !positive(cfg->dt_max_s) || cfg->adaptive > 1u) {
+        return MCA_ERR_BAD_CONFIG;
+    }
+    return MCA_OK;
+}
+
+mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m, float v0_mps)
+{
+    if (ax == NULL || cfg == NULL) {
+        return MCA_ERR_NULL;
+    }
+    const mca_status_t st = mca_cs_config_check(cfg);
+    if (st != MCA_OK) {
+        return st;
+    }
+    if (!isfinite(p0_m) || !isfinite(v0_mps)) {
+        return MCA_ERR_NONFINITE;
+    }
+    memset(ax, 0, sizeof(*ax));
+    ax->cfg = *cfg;
+    ax->x[0] = p0_m;
+    ax->x[1] = v0_mps;
+    ax->p[0] = cfg->p0_var_m2;
+    ax->p[6] = cfg->v0_var_m2ps2;
+    ax->p[12] = cfg->a0_var_m2ps4;
+    ax->p[18] = cfg->sigma_p_m * cfg->sigma_p_m;
+    ax->p[24] = cfg->sigma_v_mps * cfg->sigma_v_mps;
+    ax->s2_m2ps4 = cfg->sigma_a0_mps2 * cfg->sigma_a0_mps2;
+    return MCA_OK;
+}
+
+float mca_cs_maneuver_var(const mca_cs_config_t *cfg, float abar)
+{
+    const float s20 = cfg->sigma_a0_mps2 * cfg->sigma_a0_mps2;
+    if (cfg->adaptive == 0u || !(abar > 0.0f || abar < 0.0f)) {
+        return s20; /* fixed mode, or abar == 0 exactly (docs/ALGORITHMS.md 2, step 3) */
+    }
+    const float amax = cfg->a_max_mps2;
+    float ac = fabsf(abar);
+    ac = ac > amax ? amax : ac;
+    /* (a_max - abar)^2 for abar > 0, (a_max + abar)^2 for abar < 0: both (a_max - |abar|)^2 */
+    float s2 = (4.0f - MCA_PI_F) / MCA_PI_F * (amax - ac) * (amax - ac);
+    const float floor2 = cfg->sigma_a_min_mps2 * cfg->sigma_a_min_mps2;
+    return s2 > floor2 ? s2 : floor2;
+}
+
+/* Horner evaluation of sum_k c[k] x^k. */
+static float series(const float *c, float x)
+{
+    float s = 0.0f;
+    for (size_t k = MCA_CS_SERIES_TERMS; k-- > 0;) {
+        s = s * x + c[k];
+    }
+    return s;
+}
+
+void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
+{
+    const float qc = 2.0f * alpha * s2; /* white-noise density of w_a */
+    const float x = alpha * t;
+    float q11, q12, q13, q22, q23, q33v;
+    /* (1 - e)^2 and 1 - e^2 are cancellation-free through expm1f on both sides. */
+    const float em1 = expm1f(-x);         /* e - 1 */
+    const float em2 = expm1f(-2.0f * x);  /* e^2 - 1 */
+    if (x < MCA_CS_SERIES_X) {
+        /* q_ij = q T^p / 2 * g_ij(x)/x^p, series of scripts/gen_singer_series.py */
+        const float t2 = t * t, t3 = t2 * t;
+        q11 = 0.5f * qc * t3 * t2 * series(mca_cs_series_g11, x);
+        q12 = 0.5f * qc * t2 * t2 * series(mca_cs_series_g12, x);
+        q13 = 0.5f * qc * t3 * series(mca_cs_series_g13, x);
+        q22 = 0.5f * qc * t3 * series(mca_cs_series_g22, x);
+    } else {
+        /* DESIGN.md 3, exact Singer forms; no cancellation worth a bit for x >= 2 */
+        const float e = expf(-x), e2 = e * e;
+        const float a2 = alpha * alpha, a3 = a2 * alpha, a4 = a3 * alpha, a5 = a4 * alpha;
+        q11 = qc / (2.0f * a5) *
+              (1.0f - e2 + 2.0f * x + 2.0f * x * x * x / 3.0f - 2.0f * x * x - 4.0f * x * e);
+        q12 = qc / (2.0f * a4) * (e2 + 1.0f - 2.0f * e + 2.0f * x * e - 2.0f * x + x * x);
+        q13 = qc / (2.0f * a3) * (1.0f - e2 - 2.0f * x * e);
+        q22 = qc / (2.0f * a3) * (4.0f * e - 3.0f - e2 + 2.0f * x);
+    }
+    q23 = qc / (2.0f * alpha * alpha) * em1 * em1;
+    q33v = -qc / (2.0f * alpha) * em2;
+    q33[0] = q11;
+    q33[1] = q12;
+    q33[2] = q13;
+    q33[3] = q12;
+    q33[4] = q22;
+    q33[5] = q23;
+    q33[6] = q13;
+    q33[7] = q23;
+    q33[8] = q33v;
+}
+
+void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[25], float q[25])
+{
+    const float alpha = 1.0f / cfg->tau_a_s;
+    const float beta = 1.0f / cfg->tau_p_s;
+    const float gamma = 1.0f / cfg->tau_v_s;
+    const float x = alpha * t;
+    const float em1 = expm1f(-x); /* e - 1 */
+    memset(phi, 0, 25u * sizeof(float));
+    memset(q, 0, 25u * sizeof(float));
+    phi[0] = 1.0f;
+    phi[1] = t;
+    /* Phi13 = (alpha T - 1 + e)/alpha^2 = T^2 (x - 1 + e)/x^2 */
+    phi[2] = (x < MCA_CS_SERIES_X) ? t * t * series(mca_cs_series_phi13, x) : (x + em1) / (alpha * alpha);
+    phi[6] = 1.0f;
+    phi[7] = -em1 / alpha; /* (1 - e)/alpha */
+    phi[12] = 1.0f + em1;  /* e */
+    phi[18] = expf(-beta * t);
+    phi[24] = expf(-gamma * t);
+    float q33[9];
+    mca_cs_singer_q(alpha, t, s2, q33);
+    for (size_t i = 0; i < 3u; ++i) {
+        for (size_t j = 0; j < 3u; ++j) {
+            q[i * 5u + j] = q33[i * 3u + j];
+        }
+    }
+    const float sp2 = cfg->sigma_p_m * cfg->sigma_p_m, sv2 = cfg->sigma_v_mps * cfg->sigma_v_mps;
+    q[18] = -sp2 * expm1f(-2.0f * beta * t);  /* sigma_p^2 (1 - exp(-2 beta T)) */
+    q[24] = -sv2 * expm1f(-2.0f * gamma * t); /* sigma_v^2 (1 - exp(-2 gamma T)) */
+}
+
+static int dt_ok(const mca_cs_config_t *cfg, float t)
+{
+    return isfinite(t) && t > 0.0f && t <= cfg->dt_max_s;
+}
+
+/* Predict with a T already validated. */
+static void axis_predict(mca_cs_axis_t *ax, float t)
+{
+    float phi[25], q[25], tmp[25];
+    const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
+    mca_cs_transition(&ax->cfg, t, s2, phi, q);
+    /* mean: eq. 17, Phi1 = constant acceleration + Gauss-Markov decay of eps */
+    const float a = ax->x[2];
+    ax->x[0] += t * ax->x[1] + 0.5f * t * t * a;
+    ax->x[1] += t * a;
+    ax->x[3] *= phi[18];
+    ax->x[4] *= phi[24];
+    /* covariance: Phi P Phi^T + Q */
+    mca_mat_mul(tmp, phi, ax->p, 5u, 5u, 5u);
+    mca_mat_mul_bt(ax->p, tmp, phi, 5u, 5u, 5u);
+    for (size_t i = 0; i < 25u; ++i) {
+        ax->p[i] += q[i];
+    }
+    mca_mat_symmetrize(ax->p, 5u);
+    ax->s2_m2ps4 = s2;
+}
+
+mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t)
+{
+    if (ax == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!dt_ok(&ax->cfg, t)) {
+        return MCA_ERR_BAD_DT;
+    }
+    axis_predict(ax, t);
+    return MCA_OK;
+}
+
+/* Validate one axis' update inputs (docs/ALGORITHMS.md 2, Update). */
+static mca_status_t check_update(float z_p, float z_v, float r_p, float r_v, uint8_t mask)
+{
+    if (mask == 0u || (mask & (uint8_t)~(MCA_CS_POS | MCA_CS_VEL)) != 0u) {
+        return MCA_ERR_BAD_MASK;
+    }
+    if (((mask & MCA_CS_POS) != 0u && !isfinite(z_p)) || ((mask & MCA_CS_VEL) != 0u && !isfinite(z_v))) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (((mask & MCA_CS_POS) != 0u && !positive(r_p)) || ((mask & MCA_CS_VEL) != 0u && !positive(r_v))) {
+        return MCA_ERR_BAD_ARG;
+    }
+    return MCA_OK;
+}
+
+mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r_p, float r_v,
+                                uint8_t mask, float *ws, mca_update_report_t *rep)
+{
+    if (ax == NULL || ws == NULL) {
+        return MCA_ERR_NULL;
+    }
+    const mca_status_t st = check_update(z_p, z_v, r_p, r_v, mask);
+    if (st != MCA_OK) {
+        return st;
+    }
+    float h[MCA_CS_NZ * MCA_CS_NX] = {0};
+    float z[MCA_CS_NZ], r[MCA_CS_NZ * MCA_CS_NZ] = {0};
+    size_t m = 0u;
+    if ((mask & MCA_CS_POS) != 0u) {
+        h[m * MCA_CS_NX + 0u] = 1.0f; /* p + eps_p */
+        h[m * MCA_CS_NX + 3u] = 1.0f;
+        z[m] = z_p;
+        ++m;
+    }
+    if ((mask & MCA_CS_VEL) != 0u) {
+        h[m * MCA_CS_NX + 1u] = 1.0f; /* v + eps_v */
+        h[m * MCA_CS_NX + 4u] = 1.0f;
+        z[m] = z_v;
+        ++m;
+    }
+    if (m == 2u) {
+        r[0] = r_p;
+        r[3] = r_v;
+    } else {
+        r[0] = (mask & MCA_CS_POS) != 0u ? r_p : r_v;
+    }
+    return mca_kf_update(ax->x, ax->p, MCA_CS_NX, h, z, r, m, ws, MCA_CS_WS_LEN, rep);
+}
+
+mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
+                          const float pos_ned_m[3], const float vel_ned_mps[3])
+{
+    if (cs == NULL || cfg_h == NULL || cfg_v == NULL) {
+        return MCA_ERR_NULL;
+    }
+    mca_status_t st = mca_cs_config_check(cfg_h);
+    if (st == MCA_OK) {
+        st = mca_cs_config_check(cfg_v);
+    }
+    if (st != MCA_OK) {
+        return st;
+    }
+    if ((pos_ned_m != NULL && !mca_all_finite(pos_ned_m, 3u)) ||
+        (vel_ned_mps != NULL && !mca_all_finite(vel_ned_mps, 3u))) {
+        return MCA_ERR_NONFINITE;
+    }
+    for (size_t i = 0; i < 3u; ++i) {
+        const float p0 = pos_ned_m != NULL ? pos_ned_m[i] : 0.0f;
+        const float v0 = vel_ned_mps != NULL ? vel_ned_mps[i] : 0.0f;
+        (void)mca_cs_axis_init(&cs->axis[i], i < 2u ? cfg_h : cfg_v, p0, v0);
+    }
+    memset(cs->ws, 0, sizeof(cs->ws));
+    return MCA_OK;
+}
+
+mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t)
+{
+    if (cs == NULL) {
+        return MCA_ERR_NULL;
+    }
+    for (size_t i = 0; i < 3u; ++i) {
+        if (!dt_ok(&cs->axis[i].cfg, t)) {
+            return MCA_ERR_BAD_DT;
+        }
+    }
+    for (size_t i = 0; i < 3u; ++i) {
+        axis_predict(&cs->axis[i], t);
+    }
+    return MCA_OK;
+}
+
+mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
+                            const float r_vel[3], const uint8_t mask[3], mca_update_report_t rep[3])
+{
+    if (cs == NULL || pos == NULL || vel == NULL || r_pos == NULL || r_vel == NULL || mask == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if ((mask[0] | mask[1] | mask[2]) == 0u) {
+        return MCA_ERR_BAD_MASK;
+    }
+    for (size_t i = 0; i < 3u; ++i) {
+        if (mask[i] != 0u) {
+            const mca_status_t st = check_update(pos[i], vel[i], r_pos[i], r_vel[i], mask[i]);
+            if (st != MCA_OK) {
+                return st;
+            }
+        }
+    }
+    /* Axes are independent; C = H P H^T + R is positive definite whenever P is PSD and
+     * R > 0 (checked above), so an update can fail now only by float overflow, which leaves
+     * that axis unchanged (mca_kf_update is atomic). */
+    mca_status_t result = MCA_OK;
+    for (size_t i = 0; i < 3u; ++i) {
+        if (mask[i] == 0u) {
+            if (rep != NULL) {
+                memset(&rep[i], 0, sizeof(rep[i]));
+            }
+            continue;
+        }
+        const mca_status_t st = mca_cs_axis_update(&cs->axis[i], pos[i], vel[i], r_pos[i], r_vel[i], mask[i],
+                                                   cs->ws, rep != NULL ? &rep[i] : NULL);
+        if (st != MCA_OK && result == MCA_OK) {
+            result = st;
+        }
+    }
+    return result;
+}

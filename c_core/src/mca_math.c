@@ -1,0 +1,199 @@
+/* Small float32 linear algebra and quaternions. See mca_math.h. */
+#include "mcahrs/mca_math.h"
+
+#include <math.h>
+
+#define MCA_PI_F 3.14159265358979f
+
+int mca_finite(float x)
+{
+    return isfinite(x) ? 1 : 0;
+}
+
+int mca_all_finite(const float *v, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+void mca_mat_mul(float *c, const float *a, const float *b, size_t r, size_t n, size_t k)
+{
+    for (size_t i = 0; i < r; ++i) {
+        for (size_t j = 0; j < k; ++j) {
+            float s = 0.0f;
+            for (size_t l = 0; l < n; ++l) {
+                s += a[i * n + l] * b[l * k + j];
+            }
+            c[i * k + j] = s;
+        }
+    }
+}
+
+void mca_mat_mul_bt(float *c, const float *a, const float *b, size_t r, size_t n, size_t k)
+{
+    for (size_t i = 0; i < r; ++i) {
+        for (size_t j = 0; j < k; ++j) {
+            float s = 0.0f;
+            for (size_t l = 0; l < n; ++l) {
+                s += a[i * n + l] * b[j * n + l];
+            }
+            c[i * k + j] = s;
+        }
+    }
+}
+
+void mca_mat_symmetrize(float *a, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        for (size_t j = i + 1; j < n; ++j) {
+            const float s = 0.5f * (a[i * n + j] + a[j * n + i]);
+            a[i * n + j] = s;
+            a[j * n + i] = s;
+        }
+    }
+}
+
+mca_status_t mca_cholesky(float *l, const float *a, size_t n)
+{
+    for (size_t i = 0; i < n * n; ++i) {
+        l[i] = 0.0f;
+    }
+    for (size_t j = 0; j < n; ++j) {
+        float d = a[j * n + j];
+        for (size_t k = 0; k < j; ++k) {
+            d -= l[j * n + k] * l[j * n + k];
+        }
+        /* !(d > 0) also catches NaN. */
+        if (!(d > 0.0f) || !isfinite(d)) {
+            for (size_t i = 0; i < n * n; ++i) {
+                l[i] = 0.0f;
+            }
+            return MCA_ERR_SINGULAR;
+        }
+        const float ljj = sqrtf(d);
+        l[j * n + j] = ljj;
+        for (size_t i = j + 1; i < n; ++i) {
+            float s = a[i * n + j];
+            for (size_t k = 0; k < j; ++k) {
+                s -= l[i * n + k] * l[j * n + k];
+            }
+            l[i * n + j] = s / ljj;
+        }
+    }
+    return MCA_OK;
+}
+
+void mca_cholesky_solve(const float *l, float *b, size_t n)
+{
+    /* forward: l y = b */
+    for (size_t i = 0; i < n; ++i) {
+        float s = b[i];
+        for (size_t k = 0; k < i; ++k) {
+            s -= l[i * n + k] * b[k];
+        }
+        b[i] = s / l[i * n + i];
+    }
+    /* backward: l^T x = y */
+    for (size_t ii = n; ii-- > 0;) {
+        float s = b[ii];
+        for (size_t k = ii + 1; k < n; ++k) {
+            s -= l[k * n + ii] * b[k];
+        }
+        b[ii] = s / l[ii * n + ii];
+    }
+}
+
+void mca_quat_mul(float r[4], const float p[4], const float q[4])
+{
+    r[0] = p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3];
+    r[1] = p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2];
+    r[2] = p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1];
+    r[3] = p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0];
+}
+
+float mca_quat_normalize(float q[4])
+{
+    const float n = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!(n > 1e-12f) || !isfinite(n)) {
+        q[0] = 1.0f;
+        q[1] = 0.0f;
+        q[2] = 0.0f;
+        q[3] = 0.0f;
+        return n;
+    }
+    const float inv = 1.0f / n;
+    for (int i = 0; i < 4; ++i) {
+        q[i] *= inv;
+    }
+    return n;
+}
+
+void mca_quat_from_rotvec(float q[4], const float rv_rad[3])
+{
+    const float a2 = rv_rad[0] * rv_rad[0] + rv_rad[1] * rv_rad[1] + rv_rad[2] * rv_rad[2];
+    const float a = sqrtf(a2);
+    float k; /* sin(a/2)/a */
+    if (a < 1e-3f) {
+        /* Taylor: sin(a/2)/a = 1/2 - a^2/48 + a^4/3840; error < 1e-13 here. */
+        k = 0.5f - a2 * (1.0f / 48.0f) + a2 * a2 * (1.0f / 3840.0f);
+        q[0] = 1.0f - a2 * (1.0f / 8.0f) + a2 * a2 * (1.0f / 384.0f);
+    } else {
+        k = sinf(0.5f * a) / a;
+        q[0] = cosf(0.5f * a);
+    }
+    q[1] = k * rv_rad[0];
+    q[2] = k * rv_rad[1];
+    q[3] = k * rv_rad[2];
+}
+
+void mca_quat_to_dcm(float c[9], const float q[4])
+{
+    const float w = q[0], x = q[1], y = q[2], z = q[3];
+    c[0] = 1.0f - 2.0f * (y * y + z * z);
+    c[1] = 2.0f * (x * y - w * z);
+    c[2] = 2.0f * (x * z + w * y);
+    c[3] = 2.0f * (x * y + w * z);
+    c[4] = 1.0f - 2.0f * (x * x + z * z);
+    c[5] = 2.0f * (y * z - w * x);
+    c[6] = 2.0f * (x * z - w * y);
+    c[7] = 2.0f * (y * z + w * x);
+    c[8] = 1.0f - 2.0f * (x * x + y * y);
+}
+
+void mca_quat_to_euler(float e[3], const float q[4])
+{
+    const float w = q[0], x = q[1], y = q[2], z = q[3];
+    e[0] = atan2f(2.0f * (w * x + y * z), 1.0f - 2.0f * (x * x + y * y));
+    float s = 2.0f * (w * y - z * x);
+    s = s > 1.0f ? 1.0f : (s < -1.0f ? -1.0f : s);
+    e[1] = asinf(s);
+    e[2] = atan2f(2.0f * (w * z + x * y), 1.0f - 2.0f * (y * y + z * z));
+}
+
+void mca_quat_from_euler(float q[4], const float e[3])
+{
+    const float cr = cosf(0.5f * e[0]), sr = sinf(0.5f * e[0]);
+    const float cp = cosf(0.5f * e[1]), sp = sinf(0.5f * e[1]);
+    const float cy = cosf(0.5f * e[2]), sy = sinf(0.5f * e[2]);
+    q[0] = cr * cp * cy + sr * sp * sy;
+    q[1] = sr * cp * cy - cr * sp * sy;
+    q[2] = cr * sp * cy + sr * cp * sy;
+    q[3] = cr * cp * sy - sr * sp * cy;
+}
+
+float mca_wrap_pi(float a)
+{
+    if (!isfinite(a)) {
+        return 0.0f;
+    }
+    /* bounded: one fmodf, no loop */
+    float w = fmodf(a + MCA_PI_F, 2.0f * MCA_PI_F);
+    if (w < 0.0f) {
+        w += 2.0f * MCA_PI_F;
+    }
+    return w - MCA_PI_F;
+}

@@ -1,0 +1,516 @@
+"""Current-statistical (CS) maneuver filter: float64 golden model of DESIGN.md 3 and
+ALGORITHMS.md 2-3.
+
+One 5-state Kalman filter per NED axis, state ``x = [p, v, a, eps_p, eps_v]``.
+Mean step: constant acceleration (``Phi1``, eq. 17). Covariance step: the exact CS
+transition ``Phi`` and the exact Singer process noise ``Q``.
+
+Small ``x = alpha T``
+---------------------
+``Phi13``, ``Phi23`` and the Singer block ``q11..q33`` written as in DESIGN.md 3 cancel
+catastrophically when ``x = alpha T`` is small, in float64 too (measured against 60-digit
+mpmath: the exact-form ``q11`` is wrong by 6e-11 relative at x = 0.1 and by 1e-2 at
+x = 1e-3). Below ``SERIES_THRESHOLD`` every one of them is evaluated as a Taylor series in
+``x`` instead; at and above it, the D3 formulas are used (with ``expm1`` for ``1 - e`` and
+``1 - e^2``, which is free accuracy).
+
+Each Singer entry is ``Q_ij = q T^(7-i-j) g_ij(x)`` (i, j = 1..3). ``Q = q int_0^T c c^T ds``
+with ``c(s)`` the third column of ``Phi(s)``, ``c_k(s) = sum_n (-alpha)^n s^(n+3-k)/(n+3-k)!``,
+and integrating the product term by term gives
+
+    g_ij(x) = sum_N  S(M, a, b) / (M! (M + 1)) * (-x)^N,
+    a = 3 - i, b = 3 - j, M = N + a + b,
+    S(M, a, b) = 2^M - sum_{k<a} binom(M, k) - sum_{k<b} binom(M, k).
+
+The coefficients are built in exact integer arithmetic at import (N = 0 gives the paper's
+small-alpha T matrix: 1/20, 1/8, 1/6, 1/3, 1/2, 1). Likewise
+``Phi13 = T^2 sum_n (-x)^n/(n+2)!``; ``Phi23 = -T expm1(-x)/x`` needs no series.
+
+Threshold and term count: ``SERIES_THRESHOLD = 1.0``, ``SERIES_TERMS = 24``.
+* Above the threshold the exact forms lose about eps * (largest term)/(result); the worst
+  entry, q11, is off by at most ~5e-15 relative at x = 1 (1.6e-15 at 1.5, 3e-16 at 2).
+* Below it, the series is alternating; rounding in Horner's rule costs at most
+  ``g(-x)/g(x) <= e^(2x)`` ulps, about 7 eps at x = 1 (measured <= 2.5e-16), and the first
+  omitted term at x = 1 is <= 2^24/(24! 25) ~ 1.1e-18 absolute, < 3e-18 relative (the slowest
+  series is q33's; 22 terms would leave 4e-16).
+* Moving the threshold up makes the series' rounding grow like e^(2 x0) and needs more terms
+  (36 at x0 = 2); moving it down makes the exact q11 lose digits like x0^-5. x0 = 1 balances
+  the two: every entry is within ~5e-15 relative of the true value for x in [1e-7, 50], and
+  the two branches agree to that across the switch.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+from dataclasses import dataclass, fields, replace
+from fractions import Fraction
+
+import numpy as np
+
+from mcahrs.errors import (
+    BadArgError,
+    BadConfigError,
+    BadDtError,
+    BadMaskError,
+    NonFiniteError,
+    NotInitError,
+)
+from mcahrs.golden.robust import UpdateReport, kf_update
+
+__all__ = [
+    "MASK_POS",
+    "MASK_VEL",
+    "SERIES_TERMS",
+    "SERIES_THRESHOLD",
+    "Cs3",
+    "CsAxis",
+    "CsAxisConfig",
+    "UpdateReport",
+    "cs_mean_transition",
+    "cs_process_noise",
+    "cs_transition",
+    "maneuver_variance",
+    "singer_q",
+]
+
+SERIES_THRESHOLD = 1.0  # alpha T below this: Taylor series (see module docstring)
+SERIES_TERMS = 24  # terms kept in every series below the threshold
+
+MASK_POS = 0x1  # update mask bit 0: position measured
+MASK_VEL = 0x2  # update mask bit 1: velocity measured
+_MASK_KNOWN = MASK_POS | MASK_VEL
+
+H_POS = np.array([1.0, 0.0, 0.0, 1.0, 0.0])  # ALGORITHMS.md 2: z_p = p + eps_p
+H_VEL = np.array([0.0, 1.0, 0.0, 0.0, 1.0])  # z_v = v + eps_v
+
+N_STATE = 5
+
+
+# --------------------------------------------------------------------------------------
+# Series coefficients (exact integers -> float64 once, at import)
+# --------------------------------------------------------------------------------------
+
+
+def _singer_coefficient(i: int, j: int, n: int) -> Fraction:
+    """Coefficient of (-x)^n in g_ij(x), i, j in 1..3 (module docstring)."""
+    a, b = 3 - i, 3 - j
+    m = n + a + b
+    s = 2**m - sum(math.comb(m, k) for k in range(a)) - sum(math.comb(m, k) for k in range(b))
+    return Fraction(s, math.factorial(m) * (m + 1))
+
+
+# _SINGER_SERIES[i, j, n]: coefficient of (-x)^n of g_(i+1)(j+1).
+_SINGER_SERIES = np.array(
+    [[[float(_singer_coefficient(i, j, n)) for n in range(SERIES_TERMS)] for j in (1, 2, 3)] for i in (1, 2, 3)]
+)
+# Coefficients of (-x)^n in (x - 1 + e^-x)/x^2 = Phi13 / T^2.
+_PHI13_SERIES = np.array([1.0 / math.factorial(n + 2) for n in range(SERIES_TERMS)])
+# Power of T in Q_ij = q T^(7-i-j) g_ij(alpha T).
+_SINGER_T_POWER = np.array([[5, 4, 3], [4, 3, 2], [3, 2, 1]])
+
+
+def _alternating_series(coefficients: np.ndarray, x: float) -> np.ndarray:
+    """sum_n coefficients[..., n] (-x)^n by Horner's rule (vectorised over leading axes)."""
+    y = -x
+    acc = np.zeros(coefficients.shape[:-1])
+    for c in coefficients[..., ::-1].T:  # highest power first
+        acc = acc * y + c.T
+    return acc
+
+
+# --------------------------------------------------------------------------------------
+# Equation blocks of DESIGN.md 3
+# --------------------------------------------------------------------------------------
+
+
+def _check_rate_and_step(alpha: float, T: float) -> tuple[float, float]:
+    alpha, T = float(alpha), float(T)
+    if not (math.isfinite(alpha) and math.isfinite(T)):
+        raise NonFiniteError("alpha and T must be finite")
+    if alpha < 0.0 or T < 0.0:
+        raise BadArgError("alpha and T must be >= 0")
+    return alpha, T
+
+
+def _phi13_normalised(x: float) -> float:
+    """(x - 1 + e^-x)/x^2, so that Phi13 = T^2 * this (-> 1/2 as x -> 0)."""
+    if x < SERIES_THRESHOLD:
+        return float(_alternating_series(_PHI13_SERIES, x))
+    return (x + math.expm1(-x)) / (x * x)
+
+
+def _phi23_normalised(x: float) -> float:
+    """(1 - e^-x)/x, so that Phi23 = T * this (-> 1 as x -> 0). expm1 has no cancellation."""
+    if x == 0.0:
+        return 1.0
+    return -math.expm1(-x) / x
+
+
+def cs_transition(alpha: float, beta: float, gamma: float, T: float) -> np.ndarray:
+    """Exact CS transition Phi over T (DESIGN.md 3), 5 x 5.
+
+    Phi13 = (alpha T - 1 + e)/alpha^2 and Phi23 = (1 - e)/alpha, e = exp(-alpha T), evaluated
+    without cancellation (ALGORITHMS.md 2, predict step 5).
+    """
+    alpha, T = _check_rate_and_step(alpha, T)
+    x = alpha * T
+    phi = np.zeros((N_STATE, N_STATE))
+    phi[0, 0] = 1.0
+    phi[0, 1] = T
+    phi[0, 2] = T * T * _phi13_normalised(x)
+    phi[1, 1] = 1.0
+    phi[1, 2] = T * _phi23_normalised(x)
+    phi[2, 2] = math.exp(-x)
+    phi[3, 3] = math.exp(-float(beta) * T)
+    phi[4, 4] = math.exp(-float(gamma) * T)
+    return phi
+
+
+def cs_mean_transition(beta: float, gamma: float, T: float) -> np.ndarray:
+    """Phi1 of eq. 17 (DESIGN.md 3): the mean step, constant acceleration, 5 x 5."""
+    T = float(T)
+    phi1 = np.zeros((N_STATE, N_STATE))
+    phi1[0, :3] = [1.0, T, 0.5 * T * T]
+    phi1[1, 1:3] = [1.0, T]
+    phi1[2, 2] = 1.0
+    phi1[3, 3] = math.exp(-float(beta) * T)
+    phi1[4, 4] = math.exp(-float(gamma) * T)
+    return phi1
+
+
+def _singer_g_series(x: float) -> np.ndarray:
+    """g_ij(x) (module docstring) by the Taylor series; accurate for 0 <= x <= ~1."""
+    return _alternating_series(_SINGER_SERIES, x)
+
+
+def _singer_g_exact(x: float) -> np.ndarray:
+    """g_ij(x) = D3 bracket_ij / (2 x^(7-i-j)); accurate for x >= ~1."""
+    e = math.exp(-x)
+    em = -math.expm1(-x)  # 1 - e
+    em2 = -math.expm1(-2.0 * x)  # 1 - e^2
+    x2, x3 = x * x, x * x * x
+    b11 = em2 + 2.0 * x + 2.0 * x3 / 3.0 - 2.0 * x2 - 4.0 * x * e
+    b12 = em * em + 2.0 * x * e - 2.0 * x + x2  # e^2 + 1 - 2e = (1 - e)^2
+    b13 = em2 - 2.0 * x * e
+    b22 = 4.0 * e - 3.0 - e * e + 2.0 * x
+    b23 = em * em
+    b33 = em2
+    brackets = np.array([[b11, b12, b13], [b12, b22, b23], [b13, b23, b33]])
+    return brackets / (2.0 * x ** _SINGER_T_POWER)
+
+
+def singer_q(alpha: float, T: float, s2: float) -> np.ndarray:
+    """Exact Singer process noise of (p, v, a) over T, 3 x 3 (DESIGN.md 3, q11..q33).
+
+    q = 2 alpha s2 is the white-noise density of w_a. Below ``SERIES_THRESHOLD`` in
+    alpha T the entries come from their Taylor series, above it from the D3 formulas;
+    either way accurate to ~5e-15 relative for alpha T in [1e-7, 50] (module docstring).
+    """
+    alpha, T = _check_rate_and_step(alpha, T)
+    s2 = float(s2)
+    if not math.isfinite(s2):
+        raise NonFiniteError("s2 must be finite")
+    if s2 < 0.0:
+        raise BadArgError("s2 must be >= 0")
+    x = alpha * T
+    g = _singer_g_series(x) if x < SERIES_THRESHOLD else _singer_g_exact(x)
+    q = 2.0 * alpha * s2
+    return q * g * T**_SINGER_T_POWER
+
+
+def cs_process_noise(
+    alpha: float, beta: float, gamma: float, T: float, s2: float, sigma_p: float, sigma_v: float
+) -> np.ndarray:
+    """Block-diagonal Q over T, 5 x 5 (ALGORITHMS.md 2, predict step 5).
+
+    Singer block with q = 2 alpha s2; q44 = sigma_p^2 (1 - exp(-2 beta T)),
+    q55 = sigma_v^2 (1 - exp(-2 gamma T)).
+    """
+    Q = np.zeros((N_STATE, N_STATE))
+    Q[:3, :3] = singer_q(alpha, T, s2)
+    Q[3, 3] = -float(sigma_p) ** 2 * math.expm1(-2.0 * float(beta) * float(T))
+    Q[4, 4] = -float(sigma_v) ** 2 * math.expm1(-2.0 * float(gamma) * float(T))
+    return Q
+
+
+def maneuver_variance(abar: float, cfg: CsAxisConfig) -> float:
+    """Maneuver variance s2 used for the next step (ALGORITHMS.md 2, predict step 3).
+
+    Fixed mode: sigma_a0^2. Adaptive (Zhou's current-statistical model): sigma_a0^2 when
+    abar == 0 exactly, else (4 - pi)/pi (a_max - |clamp(abar, +-a_max)|)^2; in adaptive
+    mode the result is floored at sigma_a_min^2.
+    """
+    if not cfg.adaptive:
+        return cfg.sigma_a0_mps2**2
+    abar = float(abar)
+    if abar == 0.0:
+        s2 = cfg.sigma_a0_mps2**2
+    else:
+        ac = min(max(abar, -cfg.a_max_mps2), cfg.a_max_mps2)
+        s2 = (4.0 - math.pi) / math.pi * (cfg.a_max_mps2 - abs(ac)) ** 2
+    return max(s2, cfg.sigma_a_min_mps2**2)
+
+
+# --------------------------------------------------------------------------------------
+# One axis
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CsAxisConfig:
+    """Configuration of one CS axis (ALGORITHMS.md 2 table). Defaults: horizontal."""
+
+    tau_a_s: float = 2.0  # maneuver correlation time, alpha = 1/tau_a
+    tau_p_s: float = 60.0  # GPS position error correlation time, beta = 1/tau_p
+    tau_v_s: float = 5.0  # GPS velocity error correlation time, gamma = 1/tau_v
+    sigma_p_m: float = 1.5  # GPS position Gauss-Markov error std
+    sigma_v_mps: float = 0.05  # GPS velocity Gauss-Markov error std
+    sigma_a0_mps2: float = 1.0  # fixed maneuver std (and adaptive when abar == 0)
+    a_max_mps2: float = 6.0  # maximum maneuver acceleration (adaptive)
+    sigma_a_min_mps2: float = 0.05  # floor of the maneuver std (adaptive)
+    adaptive: bool = True  # False: fixed sigma_a0; True: current-statistical adaptive
+    p0_var_m2: float = 25.0  # initial variance of p
+    v0_var_m2s2: float = 1.0  # initial variance of v
+    a0_var_m2s4: float = 1.0  # initial variance of a
+    dt_max_s: float = 10.0  # longest accepted predict step
+
+    @classmethod
+    def horizontal(cls) -> CsAxisConfig:
+        """Defaults of the N and E axes."""
+        return cls()
+
+    @classmethod
+    def vertical(cls) -> CsAxisConfig:
+        """Defaults of the D axis."""
+        return replace(cls(), sigma_p_m=3.0, sigma_v_mps=0.08, sigma_a0_mps2=0.5, a_max_mps2=3.0)
+
+    @property
+    def alpha(self) -> float:
+        return 1.0 / self.tau_a_s
+
+    @property
+    def beta(self) -> float:
+        return 1.0 / self.tau_p_s
+
+    @property
+    def gamma(self) -> float:
+        return 1.0 / self.tau_v_s
+
+    def validate(self) -> None:
+        """Raise BadConfigError unless every value is finite and > 0, adaptive 0/1/bool."""
+        if self.adaptive not in (0, 1):  # True/False compare equal to 1/0
+            raise BadConfigError(f"adaptive must be 0 or 1, got {self.adaptive!r}")
+        for f in fields(self):
+            if f.name == "adaptive":
+                continue
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float, np.floating, np.integer)) or isinstance(v, bool):
+                raise BadConfigError(f"{f.name} must be a number, got {v!r}")
+            if not (math.isfinite(v) and v > 0.0):
+                raise BadConfigError(f"{f.name} must be finite and > 0, got {v!r}")
+
+
+def _check_dt(T: object, dt_max_s: float) -> float:
+    """ALGORITHMS.md 2, predict step 1: 0 < T <= dt_max, finite; else BAD_DT."""
+    try:
+        t = float(T)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise BadDtError(f"T must be a number, got {T!r}") from exc
+    if not (math.isfinite(t) and 0.0 < t <= dt_max_s):
+        raise BadDtError(f"T must be finite with 0 < T <= {dt_max_s}, got {t!r}")
+    return t
+
+
+def _check_mask(mask: object) -> int:
+    """Mask must be an integer with bit 0 and/or bit 1 and no other bit; else BAD_MASK."""
+    try:
+        m = operator.index(mask)  # type: ignore[arg-type]
+    except TypeError as exc:
+        raise BadMaskError(f"mask must be an integer, got {mask!r}") from exc
+    if m < 0 or m & ~_MASK_KNOWN:
+        raise BadMaskError(f"mask has unknown bits: {m:#x}")
+    return m
+
+
+def _measurement_rows(
+    mask: int, z_p: object, z_v: object, r_p: object, r_v: object
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(H, z, r) of the rows present in a nonzero, known mask, in the order position, velocity.
+
+    A present value or variance not finite: NONFINITE; a present variance <= 0: BAD_ARG
+    (non-finite checks of every present row come first). Absent rows are not looked at.
+    """
+    rows = [(H_POS, z_p, r_p, "position")] if mask & MASK_POS else []
+    if mask & MASK_VEL:
+        rows.append((H_VEL, z_v, r_v, "velocity"))
+    try:
+        z = np.array([float(r[1]) for r in rows])  # type: ignore[arg-type]
+        r = np.array([float(r[2]) for r in rows])  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise BadArgError("measured values and variances must be numbers") from exc
+    if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
+        raise NonFiniteError("a measured value or its variance is not finite")
+    if np.any(r <= 0.0):
+        raise BadArgError("measurement variances must be > 0")
+    H = np.array([row[0] for row in rows])
+    return H, z, r
+
+
+class CsAxis:
+    """One CS axis: x (5,) = [p, v, a, eps_p, eps_v], P (5, 5), s2 last maneuver variance.
+
+    Every method either succeeds or raises with x, P and s2 unchanged.
+    """
+
+    def __init__(self, cfg: CsAxisConfig | None = None) -> None:
+        self.cfg = CsAxisConfig() if cfg is None else cfg
+        self.cfg.validate()
+        self.x = np.zeros(N_STATE)
+        self.P = np.zeros((N_STATE, N_STATE))
+        self.s2 = math.nan  # set by init()
+        self.initialised = False
+
+    # -- init ----------------------------------------------------------------------------
+    def _initial(self, p0: float, v0: float) -> tuple[np.ndarray, np.ndarray, float]:
+        p0, v0 = float(p0), float(v0)
+        if not (math.isfinite(p0) and math.isfinite(v0)):
+            raise NonFiniteError("initial position and velocity must be finite")
+        c = self.cfg
+        x = np.array([p0, v0, 0.0, 0.0, 0.0])
+        P = np.diag([c.p0_var_m2, c.v0_var_m2s2, c.a0_var_m2s4, c.sigma_p_m**2, c.sigma_v_mps**2])
+        # Reported s2 before the first predict: the value abar = x[2] = 0 would give.
+        return x, P, maneuver_variance(0.0, c)
+
+    def init(self, p0: float = 0.0, v0: float = 0.0) -> None:
+        """x = [p0, v0, 0, 0, 0], P = diag(p0_var, v0_var, a0_var, sigma_p^2, sigma_v^2)."""
+        self.x, self.P, self.s2 = self._initial(p0, v0)
+        self.initialised = True
+
+    # -- predict -------------------------------------------------------------------------
+    def _predicted(self, T: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """Pure predict over an already validated T (ALGORITHMS.md 2, predict steps 2-5)."""
+        c = self.cfg
+        s2 = maneuver_variance(self.x[2], c)  # step 2-3: abar = x[2] (eq. 16)
+        x = cs_mean_transition(c.beta, c.gamma, T) @ self.x  # step 4 (eq. 17)
+        phi = cs_transition(c.alpha, c.beta, c.gamma, T)  # step 5
+        Q = cs_process_noise(c.alpha, c.beta, c.gamma, T, s2, c.sigma_p_m, c.sigma_v_mps)
+        P = phi @ self.P @ phi.T + Q
+        P = 0.5 * (P + P.T)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            raise NonFiniteError("predict produced a non-finite state")
+        return x, P, s2
+
+    def _require_init(self) -> None:
+        if not self.initialised:
+            raise NotInitError("CsAxis.init() has not been called")
+
+    def predict(self, T: float) -> float:
+        """Predict over T seconds. Returns the maneuver variance s2 used (also self.s2).
+
+        Raises NotInitError, BadDtError (T not finite, <= 0 or > dt_max_s), NonFiniteError.
+        """
+        self._require_init()
+        t = _check_dt(T, self.cfg.dt_max_s)
+        self.x, self.P, self.s2 = self._predicted(t)
+        return self.s2
+
+    # -- update --------------------------------------------------------------------------
+    def _updated(
+        self, mask: int, z_p: float, z_v: float, r_p: float, r_v: float
+    ) -> tuple[np.ndarray, np.ndarray, UpdateReport]:
+        H, z, r = _measurement_rows(mask, z_p, z_v, r_p, r_v)
+        return kf_update(self.x, self.P, H, z, r)
+
+    def update(
+        self, z_p: float, z_v: float, r_p: float, r_v: float, mask: int = MASK_POS | MASK_VEL
+    ) -> UpdateReport:
+        """GPS update (ALGORITHMS.md 2, update). mask bit 0: z_p measured, bit 1: z_v.
+
+        Values of rows not in the mask are ignored (may be NaN). Raises NotInitError,
+        BadMaskError (0 or unknown bits), NonFiniteError, BadArgError (variance <= 0),
+        SingularError.
+        """
+        self._require_init()
+        m = _check_mask(mask)
+        if m == 0:
+            raise BadMaskError("mask is 0: nothing measured")
+        self.x, self.P, report = self._updated(m, z_p, z_v, r_p, r_v)
+        return report
+
+
+# --------------------------------------------------------------------------------------
+# Three axes N, E, D (ALGORITHMS.md 3)
+# --------------------------------------------------------------------------------------
+
+
+def _three(name: str, a: object) -> list:
+    seq = list(np.asarray(a, dtype=object).reshape(-1))
+    if len(seq) != 3:
+        raise BadArgError(f"{name} must have 3 entries (N, E, D), got {len(seq)}")
+    return seq
+
+
+class Cs3:
+    """Three independent CS axes N, E, D; N and E use cfg_h, D uses cfg_v.
+
+    Every method validates all three axes before changing any, and computes all three
+    results before committing any: on an error no axis changes.
+    """
+
+    def __init__(self, cfg_h: CsAxisConfig | None = None, cfg_v: CsAxisConfig | None = None) -> None:
+        cfg_h = CsAxisConfig.horizontal() if cfg_h is None else cfg_h
+        cfg_v = CsAxisConfig.vertical() if cfg_v is None else cfg_v
+        self.axes = [CsAxis(cfg_h), CsAxis(cfg_h), CsAxis(cfg_v)]
+
+    def init(self, p0: object = (0.0, 0.0, 0.0), v0: object = (0.0, 0.0, 0.0)) -> None:
+        """Initialise the three axes with position p0 (3,) and velocity v0 (3,), NED."""
+        new = [ax._initial(p, v) for ax, p, v in zip(self.axes, _three("p0", p0), _three("v0", v0))]
+        for ax, (x, P, s2) in zip(self.axes, new):
+            ax.x, ax.P, ax.s2 = x, P, s2
+            ax.initialised = True
+
+    def predict(self, T: float) -> np.ndarray:
+        """Predict all axes over T (validated once against every axis' dt_max_s).
+
+        Returns the three maneuver variances s2 used.
+        """
+        for ax in self.axes:
+            ax._require_init()
+        t = T
+        for ax in self.axes:
+            t = _check_dt(T, ax.cfg.dt_max_s)
+        new = [ax._predicted(t) for ax in self.axes]
+        for ax, (x, P, s2) in zip(self.axes, new):
+            ax.x, ax.P, ax.s2 = x, P, s2
+        return np.array([s2 for (_, _, s2) in new])
+
+    def update(
+        self, z_p: object, z_v: object, r_p: object, r_v: object, mask: object
+    ) -> list[UpdateReport | None]:
+        """Update with per-axis position, velocity, variances and masks, each (3,), N E D.
+
+        An axis whose mask is 0 is skipped (its report is None); all three masks 0, or any
+        mask with unknown bits, is BadMaskError. Order of checks: every mask, then each
+        axis' values and variances (N, E, D), then the updates; nothing changes on error.
+        """
+        for ax in self.axes:
+            ax._require_init()
+        masks = [_check_mask(m) for m in _three("mask", mask)]
+        if not any(masks):
+            raise BadMaskError("mask is 0 on all three axes")
+        zp, zv, rp, rv = _three("z_p", z_p), _three("z_v", z_v), _three("r_p", r_p), _three("r_v", r_v)
+        rows = [
+            _measurement_rows(m, zp[i], zv[i], rp[i], rv[i]) if m else None for i, m in enumerate(masks)
+        ]
+        new = [
+            kf_update(ax.x, ax.P, *row) if row is not None else None for ax, row in zip(self.axes, rows)
+        ]
+        reports: list[UpdateReport | None] = []
+        for ax, result in zip(self.axes, new):
+            if result is None:
+                reports.append(None)
+                continue
+            ax.x, ax.P, report = result
+            reports.append(report)
+        return reports

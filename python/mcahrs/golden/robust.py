@@ -1,0 +1,120 @@
+"""Measurement update shared by every filter: ALGORITHMS.md section 1 (plain mode).
+
+Float64 golden model. Pure functions: inputs are never modified, so on any error the
+caller's state is exactly what it was.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from mcahrs.errors import BadArgError, NonFiniteError, SingularError
+
+__all__ = ["UpdateReport", "kf_update"]
+
+# Relative asymmetry tolerated in P and R (they are documented as symmetric; this only
+# catches a caller passing something that is not a covariance at all).
+_SYMMETRY_RTOL = 1e-12
+
+
+@dataclass(frozen=True)
+class UpdateReport:
+    """What every update reports (ALGORITHMS.md 1).
+
+    m: measurement size; nu: innovation z - H x (m,); C: innovation covariance
+    H P H^T + R (m, m); T: normalised innovation squared nu^T C^-1 nu (chi^2(m) when
+    the model holds).
+    """
+
+    m: int
+    nu: np.ndarray
+    C: np.ndarray
+    T: float
+
+
+def _as_float_array(name: str, a: object, ndim: int) -> np.ndarray:
+    arr = np.array(a, dtype=np.float64)  # a copy: nothing below can alias the caller's data
+    if arr.ndim != ndim:
+        raise BadArgError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
+    return arr
+
+
+def _check_symmetric(name: str, a: np.ndarray) -> None:
+    scale = float(np.max(np.abs(a))) if a.size else 0.0
+    if float(np.max(np.abs(a - a.T), initial=0.0)) > _SYMMETRY_RTOL * scale:
+        raise BadArgError(f"{name} is not symmetric")
+
+
+def kf_update(
+    x: np.ndarray, P: np.ndarray, H: np.ndarray, z: np.ndarray, R: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, UpdateReport]:
+    """Kalman measurement update, Joseph form (ALGORITHMS.md 1, steps 1-6).
+
+    Args:
+        x: state (n,).
+        P: state covariance (n, n), symmetric.
+        H: measurement rows (m, n).
+        z: measurement (m,).
+        R: measurement noise, full symmetric (m, m) or its diagonal (m,).
+
+    Returns:
+        (x_plus, P_plus, report): new arrays; the inputs are not modified.
+
+    Raises:
+        BadArgError: shapes inconsistent, m == 0, or P / R not symmetric.
+        NonFiniteError: an input is NaN/Inf, or x+ / P+ would be (step 6).
+        SingularError: C = H P H^T + R is not positive definite (step 2).
+    """
+    x = _as_float_array("x", x, 1)
+    P = _as_float_array("P", P, 2)
+    H = _as_float_array("H", H, 2)
+    z = _as_float_array("z", z, 1)
+    R = np.array(R, dtype=np.float64)
+    n, m = x.shape[0], z.shape[0]
+    if R.ndim == 1:
+        R = np.diag(R)
+    if m == 0 or P.shape != (n, n) or H.shape != (m, n) or R.shape != (m, m):
+        raise BadArgError(
+            f"inconsistent shapes: x {x.shape}, P {P.shape}, H {H.shape}, z {z.shape}, R {R.shape}"
+        )
+    for name, a in (("x", x), ("P", P), ("H", H), ("z", z), ("R", R)):
+        if not np.all(np.isfinite(a)):
+            raise NonFiniteError(f"{name} is not finite")
+    _check_symmetric("P", P)
+    _check_symmetric("R", R)
+
+    # Step 1: innovation and its covariance.
+    nu = z - H @ x
+    C = H @ P @ H.T + R
+    if not np.all(np.isfinite(C)):
+        raise NonFiniteError("innovation covariance overflowed")
+
+    # Step 2: C symmetric positive definite <=> its Cholesky factor exists.
+    try:
+        L = scipy.linalg.cholesky(C, lower=True, check_finite=False)
+    except np.linalg.LinAlgError as exc:
+        raise SingularError("innovation covariance is not positive definite") from exc
+    if not np.all(np.diag(L) > 0.0):  # LAPACK accepts an exact-zero pivot on some builds
+        raise SingularError("innovation covariance is not positive definite")
+
+    # Step 3: T = nu^T C^-1 nu = |L^-1 nu|^2.
+    y = scipy.linalg.solve_triangular(L, nu, lower=True, check_finite=False)
+    T = float(y @ y)
+
+    # Step 4: K = P H^T C^-1, i.e. K^T = C^-1 (H P) (C and P symmetric).
+    K = scipy.linalg.cho_solve((L, True), H @ P, check_finite=False).T
+    x_plus = x + K @ nu
+
+    # Step 5: Joseph form, then symmetrise.
+    I_KH = np.eye(n) - K @ H
+    P_plus = I_KH @ P @ I_KH.T + K @ R @ K.T
+    P_plus = 0.5 * (P_plus + P_plus.T)
+
+    # Step 6.
+    if not (np.all(np.isfinite(x_plus)) and np.all(np.isfinite(P_plus))):
+        raise NonFiniteError("update produced a non-finite state")
+
+    return x_plus, P_plus, UpdateReport(m=m, nu=nu, C=C, T=T)

@@ -1,0 +1,93 @@
+/* Host tests of mca_cs that need no golden model: bad input leaves the state unchanged and
+ * finite, the series/exact switch is continuous, P stays symmetric positive definite. */
+#include <string.h>
+
+#include "mca_test.h"
+#include "mcahrs/mca_cs.h"
+
+static void test_bad_input_leaves_state(void)
+{
+    mca_cs_config_t h, v;
+    mca_cs_config_default_h(&h);
+    mca_cs_config_default_v(&v);
+    mca_cs3_t cs;
+    const float p0[3] = {1.0f, 2.0f, 3.0f};
+    CHECK_EQ_INT(mca_cs3_init(&cs, &h, &v, p0, NULL), MCA_OK);
+    CHECK_EQ_INT(mca_cs3_predict(&cs, 0.2f), MCA_OK);
+    mca_cs3_t before;
+    memcpy(&before, &cs, sizeof(cs));
+    CHECK_EQ_INT(mca_cs3_predict(&cs, 0.0f), MCA_ERR_BAD_DT);
+    CHECK_EQ_INT(mca_cs3_predict(&cs, -1.0f), MCA_ERR_BAD_DT);
+    CHECK_EQ_INT(mca_cs3_predict(&cs, 7200.0f), MCA_ERR_BAD_DT);
+    CHECK_EQ_INT(mca_cs3_predict(&cs, NAN), MCA_ERR_BAD_DT);
+    CHECK_EQ_INT(mca_cs3_predict(&cs, INFINITY), MCA_ERR_BAD_DT);
+    const float pos[3] = {1.0f, 2.0f, 3.0f}, vel[3] = {0.0f, 0.0f, 0.0f};
+    const float rp[3] = {4.0f, 4.0f, 9.0f}, rv[3] = {0.01f, 0.01f, 0.01f};
+    const float pos_nan[3] = {1.0f, NAN, 3.0f}, rv_bad[3] = {0.01f, 0.0f, 0.01f};
+    const uint8_t none[3] = {0, 0, 0}, both[3] = {3, 3, 1}, unknown[3] = {3, 4, 1};
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, none, NULL), MCA_ERR_BAD_MASK);
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, unknown, NULL), MCA_ERR_BAD_MASK);
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos_nan, vel, rp, rv, both, NULL), MCA_ERR_NONFINITE);
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv_bad, both, NULL), MCA_ERR_BAD_ARG);
+    CHECK(memcmp(&before.axis, &cs.axis, sizeof(cs.axis)) == 0);
+    /* a good update still works afterwards */
+    mca_update_report_t rep[3];
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, both, rep), MCA_OK);
+    CHECK_EQ_INT(rep[0].m, 2);
+    CHECK_EQ_INT(rep[2].m, 1);
+    CHECK(rep[0].t_stat >= 0.0f);
+}
+
+/* Relative gap of the Singer Q across the series switch, per entry. */
+static void test_series_switch_continuous(void)
+{
+    const float t = 1.0f, s2 = 1.0f;
+    const float x_lo = MCA_CS_SERIES_X * (1.0f - 1e-6f), x_hi = MCA_CS_SERIES_X * (1.0f + 1e-6f);
+    float qa[9], qb[9];
+    mca_cs_singer_q(x_lo / t, t, s2, qa);
+    mca_cs_singer_q(x_hi / t, t, s2, qb);
+    for (int i = 0; i < 9; ++i) {
+        /* x moves by 2e-6 relative; each entry moves by at most a few times that, the
+         * rest is float32 rounding of the two forms (a few ulp). */
+        CHECK_CLOSE(qa[i] / qb[i], 1.0, 2e-5);
+    }
+}
+
+static int spd(const float *p, int n)
+{
+    float l[25];
+    return mca_cholesky(l, p, (size_t)n) == MCA_OK;
+}
+
+static void test_long_run_stays_spd(void)
+{
+    mca_cs_config_t h;
+    mca_cs_config_default_h(&h);
+    mca_cs_axis_t ax;
+    float ws[MCA_CS_WS_LEN];
+    CHECK_EQ_INT(mca_cs_axis_init(&ax, &h, 0.0f, 0.0f), MCA_OK);
+    unsigned seed = 12345u;
+    int ok = 1;
+    for (int k = 0; k < 100000; ++k) {
+        /* 400 Hz predicts, a fix every 80 steps, a crude deterministic noise */
+        ok &= mca_cs_axis_predict(&ax, 0.0025f) == MCA_OK;
+        if (k % 80 == 79) {
+            seed = seed * 1103515245u + 12345u;
+            const float n = (float)((seed >> 16) & 0x7fff) / 32768.0f - 0.5f;
+            ok &= mca_cs_axis_update(&ax, 3.0f * n, 0.1f * n, 6.25f, 0.01f, 3, ws, NULL) == MCA_OK;
+        }
+        if (k % 997 == 0) {
+            ok &= spd(ax.p, 5);
+            ok &= mca_all_finite(ax.p, 25) && mca_all_finite(ax.x, 5);
+        }
+    }
+    CHECK(ok);
+}
+
+int main(void)
+{
+    test_bad_input_leaves_state();
+    test_series_switch_continuous();
+    test_long_run_stays_spd();
+    TEST_MAIN_END();
+}

@@ -1,0 +1,82 @@
+/* Host tests of mca_math: Cholesky, quaternions, Euler round trips. */
+#include <string.h>
+
+#include "mca_test.h"
+#include "mcahrs/mca_math.h"
+
+static void test_cholesky(void)
+{
+    const float a[9] = {4.0f, 2.0f, 0.4f, 2.0f, 5.0f, 1.0f, 0.4f, 1.0f, 3.0f};
+    float l[9];
+    CHECK_EQ_INT(mca_cholesky(l, a, 3), MCA_OK);
+    /* l l^T reproduces a */
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            float s = 0.0f;
+            for (int k = 0; k < 3; ++k) {
+                s += l[i * 3 + k] * l[j * 3 + k];
+            }
+            CHECK_CLOSE(s, a[i * 3 + j], 1e-5);
+        }
+    }
+    /* solve: a x = b with known x */
+    const float x_true[3] = {1.0f, -2.0f, 0.5f};
+    float b[3];
+    for (int i = 0; i < 3; ++i) {
+        b[i] = a[i * 3] * x_true[0] + a[i * 3 + 1] * x_true[1] + a[i * 3 + 2] * x_true[2];
+    }
+    mca_cholesky_solve(l, b, 3);
+    for (int i = 0; i < 3; ++i) {
+        CHECK_CLOSE(b[i], x_true[i], 1e-5);
+    }
+    const float bad[4] = {1.0f, 2.0f, 2.0f, 1.0f}; /* indefinite */
+    CHECK_EQ_INT(mca_cholesky(l, bad, 2), MCA_ERR_SINGULAR);
+    const float nan_m[1] = {NAN};
+    CHECK_EQ_INT(mca_cholesky(l, nan_m, 1), MCA_ERR_SINGULAR);
+}
+
+static void test_quat(void)
+{
+    const float e[3] = {0.3f, -0.2f, 1.1f};
+    float q[4], e2[3], c[9];
+    mca_quat_from_euler(q, e);
+    mca_quat_to_euler(e2, q);
+    for (int i = 0; i < 3; ++i) {
+        CHECK_CLOSE(e2[i], e[i], 1e-6);
+    }
+    /* C_nb third row = [-sin(theta), sin(phi)cos(theta), cos(phi)cos(theta)] */
+    mca_quat_to_dcm(c, q);
+    CHECK_CLOSE(c[6], -sinf(e[1]), 1e-6);
+    CHECK_CLOSE(c[7], sinf(e[0]) * cosf(e[1]), 1e-6);
+    CHECK_CLOSE(c[8], cosf(e[0]) * cosf(e[1]), 1e-6);
+    /* rotation vector about z by yaw equals Euler (0, 0, yaw) */
+    const float rv[3] = {0.0f, 0.0f, 0.7f}, ez[3] = {0.0f, 0.0f, 0.7f};
+    float qa[4], qb[4];
+    mca_quat_from_rotvec(qa, rv);
+    mca_quat_from_euler(qb, ez);
+    for (int i = 0; i < 4; ++i) {
+        CHECK_CLOSE(qa[i], qb[i], 1e-6);
+    }
+    /* small-angle branch continuous with the exact one */
+    const float r1[3] = {0.0f, 0.0f, 0.999e-3f}, r2[3] = {0.0f, 0.0f, 1.001e-3f};
+    mca_quat_from_rotvec(qa, r1);
+    mca_quat_from_rotvec(qb, r2);
+    CHECK_CLOSE(qa[3] / 0.999e-3f, qb[3] / 1.001e-3f, 1e-7);
+    /* product: two half turns about z make a full turn (q = -1) */
+    const float h[4] = {0.0f, 0.0f, 0.0f, 1.0f};
+    float r[4];
+    mca_quat_mul(r, h, h);
+    CHECK_CLOSE(r[0], -1.0f, 0.0);
+    float z[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    mca_quat_normalize(z);
+    CHECK_CLOSE(z[0], 1.0f, 0.0);
+    CHECK_CLOSE(mca_wrap_pi(3.0f * 3.14159265f), -3.14159265f, 1e-5);
+    CHECK_CLOSE(mca_wrap_pi(-0.5f), -0.5f, 1e-7);
+}
+
+int main(void)
+{
+    test_cholesky();
+    test_quat();
+    TEST_MAIN_END();
+}
