@@ -20,7 +20,9 @@ import cffi
 
 UMBRELLA = "mcahrs/mcahrs.h"
 STD_HEADERS = ("stdint.h", "stddef.h", "stdbool.h")
-INT_DEFINE = re.compile(r"^#define\s+(MCA_[A-Z0-9_]+)\s+\(?-?\d+\)?\s*(?:/\*.*)?$", re.M)
+# Object-like MCA_* macros with an integer value (literals or integer expressions such as
+# MCA_CS_WS_LEN); float macros (with a '.') and function-like macros are left out.
+INT_DEFINE = re.compile(r"^#define\s+(MCA_[A-Z0-9_]+)[ \t]+([^.\n]*?)\s*(?:/\*.*)?$", re.M)
 
 
 def preprocess(cc: str, include: Path) -> str:
@@ -37,7 +39,7 @@ def preprocess(cc: str, include: Path) -> str:
 def constants(include: Path) -> list[str]:
     names: list[str] = []
     for h in sorted((include / "mcahrs").glob("*.h")):
-        names += INT_DEFINE.findall(h.read_text())
+        names += [n for n, body in INT_DEFINE.findall(h.read_text()) if body and not body.startswith('"')]
     return [f"#define {n} ..." for n in dict.fromkeys(names)]
 
 

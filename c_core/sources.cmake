@@ -4,6 +4,10 @@ set(MCA_CORE_SOURCES
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_math.c
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_robust.c
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_cs.c
+    ${CMAKE_CURRENT_LIST_DIR}/src/mca_geo.c
+    ${CMAKE_CURRENT_LIST_DIR}/src/mca_att.c
+    ${CMAKE_CURRENT_LIST_DIR}/src/mca_nav.c
+    ${CMAKE_CURRENT_LIST_DIR}/src/mca_replay.c
 )
 set(MCA_CORE_INCLUDE_DIR ${CMAKE_CURRENT_LIST_DIR}/include)
 # Warnings every build of the core uses (the issue's list plus a few that catch float bugs).

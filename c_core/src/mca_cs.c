@@ -282,7 +282,6 @@ mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca
         const float v0 = vel_ned_mps != NULL ? vel_ned_mps[i] : 0.0f;
         (void)mca_cs_axis_init(&cs->axis[i], i < 2u ? cfg_h : cfg_v, p0, v0);
     }
-    memset(cs->ws, 0, sizeof(cs->ws));
     return MCA_OK;
 }
 
@@ -303,9 +302,9 @@ mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t)
 }
 
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
-                            const float r_vel[3], const uint8_t mask[3], mca_update_report_t rep[3])
+                            const float r_vel[3], const uint8_t mask[3], float *ws, mca_update_report_t rep[3])
 {
-    if (cs == NULL || pos == NULL || vel == NULL || r_pos == NULL || r_vel == NULL || mask == NULL) {
+    if (cs == NULL || pos == NULL || vel == NULL || r_pos == NULL || r_vel == NULL || mask == NULL || ws == NULL) {
         return MCA_ERR_NULL;
     }
     if ((mask[0] | mask[1] | mask[2]) == 0u) {
@@ -331,7 +330,7 @@ mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3
             continue;
         }
         const mca_status_t st = mca_cs_axis_update(&cs->axis[i], pos[i], vel[i], r_pos[i], r_vel[i], mask[i],
-                                                   cs->ws, rep != NULL ? &rep[i] : NULL);
+                                                   ws, rep != NULL ? &rep[i] : NULL);
         if (st != MCA_OK && result == MCA_OK) {
             result = st;
         }

@@ -11,6 +11,7 @@ static void test_bad_input_leaves_state(void)
     mca_cs_config_default_h(&h);
     mca_cs_config_default_v(&v);
     mca_cs3_t cs;
+    float ws[MCA_CS_WS_LEN];
     const float p0[3] = {1.0f, 2.0f, 3.0f};
     CHECK_EQ_INT(mca_cs3_init(&cs, &h, &v, p0, NULL), MCA_OK);
     CHECK_EQ_INT(mca_cs3_predict(&cs, 0.2f), MCA_OK);
@@ -25,14 +26,14 @@ static void test_bad_input_leaves_state(void)
     const float rp[3] = {4.0f, 4.0f, 9.0f}, rv[3] = {0.01f, 0.01f, 0.01f};
     const float pos_nan[3] = {1.0f, NAN, 3.0f}, rv_bad[3] = {0.01f, 0.0f, 0.01f};
     const uint8_t none[3] = {0, 0, 0}, both[3] = {3, 3, 1}, unknown[3] = {3, 4, 1};
-    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, none, NULL), MCA_ERR_BAD_MASK);
-    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, unknown, NULL), MCA_ERR_BAD_MASK);
-    CHECK_EQ_INT(mca_cs3_update(&cs, pos_nan, vel, rp, rv, both, NULL), MCA_ERR_NONFINITE);
-    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv_bad, both, NULL), MCA_ERR_BAD_ARG);
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, none, ws, NULL), MCA_ERR_BAD_MASK);
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, unknown, ws, NULL), MCA_ERR_BAD_MASK);
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos_nan, vel, rp, rv, both, ws, NULL), MCA_ERR_NONFINITE);
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv_bad, both, ws, NULL), MCA_ERR_BAD_ARG);
     CHECK(memcmp(&before.axis, &cs.axis, sizeof(cs.axis)) == 0);
     /* a good update still works afterwards */
     mca_update_report_t rep[3];
-    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, both, rep), MCA_OK);
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, both, ws, rep), MCA_OK);
     CHECK_EQ_INT(rep[0].m, 2);
     CHECK_EQ_INT(rep[2].m, 1);
     CHECK(rep[0].t_stat >= 0.0f);

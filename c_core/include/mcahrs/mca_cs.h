@@ -49,10 +49,9 @@ typedef struct {
     mca_cs_config_t cfg;
 } mca_cs_axis_t;
 
-/** Three axes N, E, D and the scratch space they share. */
+/** Three axes N, E, D. Scratch for updates is passed in (see mca_cs3_update). */
 typedef struct {
     mca_cs_axis_t axis[3];
-    float ws[MCA_CS_WS_LEN];
 } mca_cs3_t;
 
 /** Horizontal (N, E) defaults of docs/ALGORITHMS.md section 2. */
@@ -104,9 +103,10 @@ mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t_s);
 /**
  * Update the three axes; per-axis masks, an axis with mask 0 is skipped, all-zero is
  * MCA_ERR_BAD_MASK. Every axis is validated before any changes. rep (3 entries) may be NULL.
+ * @param[out] ws MCA_CS_WS_LEN floats of scratch (shared with other filters by the caller)
  */
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos_ned_m[3], const float vel_ned_mps[3],
                             const float r_pos_m2[3], const float r_vel_m2ps2[3], const uint8_t mask[3],
-                            mca_update_report_t rep[3]);
+                            float *ws, mca_update_report_t rep[3]);
 
 #endif /* MCA_CS_H */

@@ -9,5 +9,9 @@
 #include "mca_math.h"
 #include "mca_robust.h"
 #include "mca_cs.h"
+#include "mca_geo.h"
+#include "mca_att.h"
+#include "mca_nav.h"
+#include "mca_replay.h"
 
 #endif /* MCAHRS_H */

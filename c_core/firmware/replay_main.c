@@ -1,0 +1,463 @@
+/*
+ * Vector replay: reads an op stream (replay_ops.h, c_core/firmware/README.md), runs each op
+ * on the core, writes one output record per op, and (on the Cortex-M4F) measures the
+ * instructions and stack of every core call.
+ *
+ *   replay <vectors.bin> <outputs.bin> [<costs.bin>]
+ *
+ * The same source builds for the host (stdio) and for the Cortex-M4F under QEMU
+ * (semihosting); only replay_io.h's implementation differs, so host and target outputs
+ * come from the identical program. Exit status: 0 ok, 2 usage, 3 I/O, 4 bad vector file.
+ *
+ * To add ops (e.g. mca_nav.h): write an op_* function that reads its payload with in_*,
+ * calls the core inside MEASURE(), writes status and outputs with out_*, and add one row to
+ * k_ops[] plus the RPL_OP_ and RPL_EP_ numbers in replay_ops.h. scripts/gen_vectors.py
+ * needs the matching payload layout.
+ */
+#include <string.h>
+
+#include "mcahrs/mcahrs.h"
+#include "replay_io.h"
+#include "replay_ops.h"
+
+#define IO_BUF 4096u
+
+/* ---------------------------------------------------------------- buffered files */
+
+typedef struct {
+    int h;
+    size_t len, pos;
+    uint8_t buf[IO_BUF];
+} reader_t;
+
+typedef struct {
+    int h;
+    int err;
+    size_t len;
+    uint8_t buf[IO_BUF];
+} writer_t;
+
+/* Read exactly n bytes. @return 0, or -1 at end of file / error. */
+static int rd_bytes(reader_t *r, void *dst, size_t n)
+{
+    uint8_t *d = (uint8_t *)dst;
+    while (n > 0u) {
+        if (r->pos == r->len) {
+            const long got = rio_read(r->h, r->buf, IO_BUF);
+            if (got <= 0) {
+                return -1;
+            }
+            r->len = (size_t)got;
+            r->pos = 0u;
+        }
+        size_t k = r->len - r->pos;
+        k = k < n ? k : n;
+        memcpy(d, &r->buf[r->pos], k);
+        r->pos += k;
+        d += k;
+        n -= k;
+    }
+    return 0;
+}
+
+static void wr_flush(writer_t *w)
+{
+    if (w->h >= 0 && w->len > 0u && rio_write(w->h, w->buf, w->len) != 0) {
+        w->err = 1;
+    }
+    w->len = 0u;
+}
+
+static void wr_bytes(writer_t *w, const void *src, size_t n)
+{
+    if (w->h < 0) {
+        return;
+    }
+    const uint8_t *s = (const uint8_t *)src;
+    while (n > 0u) {
+        if (w->len == IO_BUF) {
+            wr_flush(w);
+        }
+        size_t k = IO_BUF - w->len;
+        k = k < n ? k : n;
+        memcpy(&w->buf[w->len], s, k);
+        w->len += k;
+        s += k;
+        n -= k;
+    }
+}
+
+static void wr_u16(writer_t *w, uint16_t v)
+{
+    wr_bytes(w, &v, sizeof(v)); /* little-endian host and target */
+}
+
+static void wr_u32(writer_t *w, uint32_t v)
+{
+    wr_bytes(w, &v, sizeof(v));
+}
+
+static void wr_header(writer_t *w, uint32_t magic, uint32_t records)
+{
+    wr_u32(w, magic);
+    wr_u16(w, (uint16_t)RPL_VERSION);
+    wr_u16(w, (uint16_t)RPL_HEADER_BYTES);
+    wr_u32(w, records);
+    wr_u32(w, 0u);
+}
+
+/* ---------------------------------------------------------------- payloads */
+
+typedef struct {
+    const uint8_t *p;
+    size_t off;
+} in_t;
+
+typedef struct {
+    size_t len;
+    uint8_t p[RPL_PAYLOAD_MAX];
+} out_t;
+
+static float in_f32(in_t *in)
+{
+    float v;
+    memcpy(&v, in->p + in->off, sizeof(v));
+    in->off += sizeof(v);
+    return v;
+}
+
+static uint32_t in_u32(in_t *in)
+{
+    uint32_t v;
+    memcpy(&v, in->p + in->off, sizeof(v));
+    in->off += sizeof(v);
+    return v;
+}
+
+static void in_f32s(in_t *in, float *v, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        v[i] = in_f32(in);
+    }
+}
+
+static void out_raw(out_t *o, const void *v, size_t n)
+{
+    if (o->len + n <= RPL_PAYLOAD_MAX) {
+        memcpy(&o->p[o->len], v, n);
+        o->len += n;
+    }
+}
+
+static void out_i32(out_t *o, int32_t v)
+{
+    out_raw(o, &v, sizeof(v));
+}
+
+static void out_f32(out_t *o, float v)
+{
+    out_raw(o, &v, sizeof(v));
+}
+
+/* ---------------------------------------------------------------- cost measurement */
+
+static writer_t g_cost = {.h = -1};
+static uint32_t g_overhead; /* instructions of an empty measured call, less its 2 */
+static uint32_t g_record;   /* index of the record being run */
+static uint32_t g_last_instr; /* instructions of the last MEASURE */
+
+static void cost_put(uint16_t kind, uint16_t id, uint32_t a, uint32_t b, uint32_t c)
+{
+    wr_u16(&g_cost, kind);
+    wr_u16(&g_cost, id);
+    wr_u32(&g_cost, a);
+    wr_u32(&g_cost, b);
+    wr_u32(&g_cost, c);
+}
+
+/*
+ * Run `call` (one core entry point) between two instruction stamps, on a freshly painted
+ * stack, and record instructions and stack high-water against entry point `ep`. The
+ * count includes the call instruction and any argument set-up the compiler placed
+ * between the stamps (a few instructions).
+ */
+#define MEASURE(ep, call)                                                                    \
+    do {                                                                                     \
+        rio_stack_paint();                                                                   \
+        const uint64_t t0_ = rio_sync();                                                     \
+        call;                                                                                \
+        const uint64_t t1_ = rio_sync();                                                     \
+        const uint32_t stack_ = rio_stack_used();                                            \
+        g_last_instr = rio_instructions(t0_, t1_, g_overhead);                               \
+        cost_put((uint16_t)RPL_COST_CALL, (uint16_t)(ep), g_last_instr, stack_, g_record);   \
+    } while (0)
+
+/* Overhead of the measurement itself: an empty call (bl + bx lr) must count 2. */
+static void calibrate(void)
+{
+    uint32_t raw = 0u;
+    g_overhead = 0u;
+    for (int i = 0; i < 4; ++i) { /* deterministic under -icount; repeat to be sure */
+        rio_stack_paint();
+        const uint64_t t0 = rio_sync();
+        rio_nop();
+        const uint64_t t1 = rio_sync();
+        const uint32_t r = rio_instructions(t0, t1, 0u);
+        raw = (i == 0 || r < raw) ? r : raw;
+    }
+    g_overhead = raw > 2u ? raw - 2u : 0u;
+}
+
+/* ---------------------------------------------------------------- the core's state */
+
+static mca_cs3_t g_cs;
+
+/* ---------------------------------------------------------------- CS ops (mca_cs.h) */
+
+static void in_cs_config(in_t *in, mca_cs_config_t *c)
+{
+    c->tau_a_s = in_f32(in);
+    c->tau_p_s = in_f32(in);
+    c->tau_v_s = in_f32(in);
+    c->sigma_p_m = in_f32(in);
+    c->sigma_v_mps = in_f32(in);
+    c->sigma_a0_mps2 = in_f32(in);
+    c->a_max_mps2 = in_f32(in);
+    c->sigma_a_min_mps2 = in_f32(in);
+    c->p0_var_m2 = in_f32(in);
+    c->v0_var_m2ps2 = in_f32(in);
+    c->a0_var_m2ps4 = in_f32(in);
+    c->dt_max_s = in_f32(in);
+    const uint32_t adaptive = in_u32(in);
+    c->adaptive = (uint8_t)(adaptive > 255u ? 255u : adaptive);
+}
+
+/* x[3][5] then P diagonal[3][5] */
+static void out_cs_state(out_t *o)
+{
+    for (size_t i = 0; i < 3u; ++i) {
+        for (size_t j = 0; j < MCA_CS_NX; ++j) {
+            out_f32(o, g_cs.axis[i].x[j]);
+        }
+    }
+    for (size_t i = 0; i < 3u; ++i) {
+        for (size_t j = 0; j < MCA_CS_NX; ++j) {
+            out_f32(o, g_cs.axis[i].p[j * (MCA_CS_NX + 1u)]);
+        }
+    }
+}
+
+static void op_cs3_init(in_t *in, out_t *out)
+{
+    mca_cs_config_t cfg_h, cfg_v;
+    float pos[3], vel[3];
+    in_cs_config(in, &cfg_h);
+    in_cs_config(in, &cfg_v);
+    in_f32s(in, pos, 3u);
+    in_f32s(in, vel, 3u);
+    const uint32_t flags = in_u32(in);
+    const float *pp = (flags & 1u) != 0u ? pos : NULL;
+    const float *vp = (flags & 2u) != 0u ? vel : NULL;
+    mca_status_t st;
+    MEASURE(RPL_EP_CS3_INIT, st = mca_cs3_init(&g_cs, &cfg_h, &cfg_v, pp, vp));
+    out_i32(out, (int32_t)st);
+    out_cs_state(out);
+}
+
+static void op_cs3_predict(in_t *in, out_t *out)
+{
+    const float dt = in_f32(in);
+    mca_status_t st;
+    MEASURE(RPL_EP_CS3_PREDICT, st = mca_cs3_predict(&g_cs, dt));
+    out_i32(out, (int32_t)st);
+    out_cs_state(out);
+}
+
+static void op_cs3_update(in_t *in, out_t *out)
+{
+    float pos[3], vel[3], r_pos[3], r_vel[3];
+    uint8_t mask[3];
+    mca_update_report_t rep[3];
+    in_f32s(in, pos, 3u);
+    in_f32s(in, vel, 3u);
+    in_f32s(in, r_pos, 3u);
+    in_f32s(in, r_vel, 3u);
+    for (size_t i = 0; i < 3u; ++i) {
+        const uint32_t m = in_u32(in);
+        mask[i] = (uint8_t)(m > 255u ? 255u : m);
+    }
+    memset(rep, 0, sizeof(rep)); /* an update rejected before it starts leaves rep alone */
+    mca_status_t st;
+    MEASURE(RPL_EP_CS3_UPDATE, st = mca_cs3_update(&g_cs, pos, vel, r_pos, r_vel, mask, rep));
+    out_i32(out, (int32_t)st);
+    out_cs_state(out);
+    for (size_t i = 0; i < 3u; ++i) {
+        out_f32(out, rep[i].t_stat);
+    }
+}
+
+/* ---------------------------------------------------------------- measurement self-test */
+
+static void op_cal_spin(in_t *in, out_t *out)
+{
+    uint32_t n = in_u32(in);
+    n = n == 0u ? 1u : n;
+    MEASURE(RPL_EP_CAL_SPIN, rio_spin(n));
+    /* The same loop timed by two plain SysTick reads (one tick = rio_instr_per_tick()). */
+    const uint32_t s0 = rio_ticks();
+    rio_spin(n);
+    const uint32_t s1 = rio_ticks();
+    cost_put((uint16_t)RPL_COST_CAL, 0u, n, g_last_instr, (s0 - s1) & 0x00FFFFFFu);
+    out_i32(out, 0);
+}
+
+/* ---------------------------------------------------------------- the op table */
+
+typedef void (*op_fn_t)(in_t *in, out_t *out);
+
+typedef struct {
+    uint16_t op;
+    uint16_t in_bytes; /* exact payload length the op expects */
+    const char *name;
+    op_fn_t run;
+} op_entry_t;
+
+static const op_entry_t k_ops[] = {
+    {RPL_OP_CS3_INIT, 33u * 4u, "cs3_init", op_cs3_init},
+    {RPL_OP_CS3_PREDICT, 1u * 4u, "cs3_predict", op_cs3_predict},
+    {RPL_OP_CS3_UPDATE, 15u * 4u, "cs3_update", op_cs3_update},
+    /* mca_nav.h ops (RPL_OP_NAV_*) go here. */
+    {RPL_OP_CAL_SPIN, 1u * 4u, "cal_spin", op_cal_spin},
+};
+
+static const op_entry_t *find_op(uint16_t op)
+{
+    for (size_t i = 0; i < sizeof(k_ops) / sizeof(k_ops[0]); ++i) {
+        if (k_ops[i].op == op) {
+            return &k_ops[i];
+        }
+    }
+    return NULL;
+}
+
+/* ---------------------------------------------------------------- main */
+
+static reader_t g_in;
+static writer_t g_out = {.h = -1};
+static uint8_t g_payload[RPL_PAYLOAD_MAX];
+static out_t g_result;
+
+static void log_record_error(const char *what, uint32_t rec, uint32_t op)
+{
+    static const char hex[] = "0123456789abcdef";
+    char msg[96];
+    size_t n = 0;
+    const char *prefix = "replay: ";
+    while (*prefix != '\0') {
+        msg[n++] = *prefix++;
+    }
+    while (*what != '\0' && n < 60u) {
+        msg[n++] = *what++;
+    }
+    const char *mid = " record 0x";
+    while (*mid != '\0') {
+        msg[n++] = *mid++;
+    }
+    for (int s = 28; s >= 0; s -= 4) {
+        msg[n++] = hex[(rec >> (uint32_t)s) & 0xFu];
+    }
+    const char *opm = " op 0x";
+    while (*opm != '\0') {
+        msg[n++] = *opm++;
+    }
+    for (int s = 12; s >= 0; s -= 4) {
+        msg[n++] = hex[(op >> (uint32_t)s) & 0xFu];
+    }
+    msg[n] = '\0';
+    rio_log(msg);
+}
+
+static int run(void)
+{
+    uint8_t hdr[RPL_HEADER_BYTES];
+    if (rd_bytes(&g_in, hdr, sizeof(hdr)) != 0) {
+        rio_log("replay: vector file has no header");
+        return 4;
+    }
+    uint32_t magic, records;
+    uint16_t version, hbytes;
+    memcpy(&magic, &hdr[0], 4u);
+    memcpy(&version, &hdr[4], 2u);
+    memcpy(&hbytes, &hdr[6], 2u);
+    memcpy(&records, &hdr[8], 4u);
+    if (magic != RPL_MAGIC_IN || version != RPL_VERSION || hbytes != RPL_HEADER_BYTES) {
+        rio_log("replay: not an MCAV v1 vector file");
+        return 4;
+    }
+    wr_header(&g_out, RPL_MAGIC_OUT, records);
+    wr_header(&g_cost, RPL_MAGIC_COST, 0u);
+
+    calibrate();
+    cost_put((uint16_t)RPL_COST_META, (uint16_t)RPL_META_MEASURED, (uint32_t)rio_can_measure(), 0u, 0u);
+    cost_put((uint16_t)RPL_COST_META, (uint16_t)RPL_META_OVERHEAD, g_overhead, 0u, 0u);
+    cost_put((uint16_t)RPL_COST_META, (uint16_t)RPL_META_INSTR_PER_TICK, rio_instr_per_tick(), 0u, 0u);
+    cost_put((uint16_t)RPL_COST_META, (uint16_t)RPL_META_SIZEOF_CS3, (uint32_t)sizeof(mca_cs3_t), 0u, 0u);
+
+    for (g_record = 0u;; ++g_record) {
+        uint16_t rh[2];
+        if (rd_bytes(&g_in, rh, sizeof(rh)) != 0) {
+            log_record_error("vector file ends without END at", g_record, 0u);
+            return 4;
+        }
+        if (rh[0] == RPL_OP_END) {
+            wr_u16(&g_out, (uint16_t)RPL_OP_END);
+            wr_u16(&g_out, 0u);
+            break;
+        }
+        const op_entry_t *e = find_op(rh[0]);
+        if (e == NULL || rh[1] != e->in_bytes) {
+            log_record_error(e == NULL ? "unknown op at" : "wrong payload length at", g_record, rh[0]);
+            return 4;
+        }
+        if (rd_bytes(&g_in, g_payload, rh[1]) != 0) {
+            log_record_error("truncated payload at", g_record, rh[0]);
+            return 4;
+        }
+        in_t in = {g_payload, 0u};
+        g_result.len = 0u;
+        e->run(&in, &g_result);
+        wr_u16(&g_out, rh[0]);
+        wr_u16(&g_out, (uint16_t)g_result.len);
+        wr_bytes(&g_out, g_result.p, g_result.len);
+    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    rio_init(&argc, &argv);
+    if (argc < 3) {
+        rio_log("usage: replay <vectors.bin> <outputs.bin> [<costs.bin>]");
+        return 2;
+    }
+    g_in.h = rio_open(argv[1], 0);
+    g_out.h = rio_open(argv[2], 1);
+    g_cost.h = argc > 3 ? rio_open(argv[3], 1) : -1;
+    if (g_in.h < 0 || g_out.h < 0 || (argc > 3 && g_cost.h < 0)) {
+        rio_log("replay: cannot open a file");
+        return 3;
+    }
+    int rc = run();
+    wr_flush(&g_out);
+    wr_flush(&g_cost);
+    rio_close(g_in.h);
+    rio_close(g_out.h);
+    if (g_cost.h >= 0) {
+        rio_close(g_cost.h);
+    }
+    if (rc == 0 && (g_out.err || g_cost.err)) {
+        rio_log("replay: write failed");
+        rc = 3;
+    }
+    return rc;
+}

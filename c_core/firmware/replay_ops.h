@@ -1,0 +1,72 @@
+/**
+ * @file replay_ops.h
+ * @brief Vector-replay format: op codes, entry-point ids, record layouts (c_core/firmware/README.md).
+ *
+ * This header is the one definition of the numbers: scripts/gen_vectors.py reads the
+ * RPL_OP_*, RPL_EP_*, RPL_META_* and RPL_COST_* defines from it, so keep them one per
+ * line as `#define NAME 0x....u` (or decimal).
+ *
+ * All files are little-endian. Each starts with a 16-byte header
+ *   u32 magic, u16 version (RPL_VERSION), u16 header bytes (16), u32 records, u32 reserved
+ * followed by records
+ *   u16 op, u16 payload bytes (a multiple of 4), payload (float32 / int32 / uint32 /
+ *   uint64 words, no padding)
+ * and ends with an RPL_OP_END record of length 0. A reader skips a record it does not
+ * know by its length; the replay program refuses one (it cannot run what it does not know).
+ */
+#ifndef MCA_REPLAY_OPS_H
+#define MCA_REPLAY_OPS_H
+
+#define RPL_VERSION 1u
+#define RPL_HEADER_BYTES 16u
+#define RPL_PAYLOAD_MAX 512u
+
+/* File magics ("MCAV" input vectors, "MCAO" outputs, "MCAC" costs), as little-endian u32. */
+#define RPL_MAGIC_IN 0x5641434Du
+#define RPL_MAGIC_OUT 0x4F41434Du
+#define RPL_MAGIC_COST 0x4341434Du
+
+/* ---- Op codes: input record -> one output record with the same op code. ---- */
+#define RPL_OP_END 0x0000u
+
+/* CS maneuver filter (mca_cs.h). Output of every CS op: i32 status, f32 x[3][5],
+ * f32 P diagonal[3][5]; CS3_UPDATE adds f32 T[3] (report t_stat, 0 for a skipped axis). */
+/* in: cfg_h, cfg_v (each 12 f32 in mca_cs_config_t order + u32 adaptive), f32 pos[3],
+ *     f32 vel[3], u32 flags (bit 0: pos given, bit 1: vel given; else NULL is passed) */
+#define RPL_OP_CS3_INIT 0x0101u
+/* in: f32 dt_s */
+#define RPL_OP_CS3_PREDICT 0x0102u
+/* in: f32 pos[3], vel[3], r_pos[3], r_vel[3], u32 mask[3] */
+#define RPL_OP_CS3_UPDATE 0x0103u
+
+/* Attitude/navigation top level (mca_nav.h): 0x02xx, added when mca_nav.h exists. */
+
+/* Measurement self-test (no core call; output: i32 status 0). in: u32 n.
+ * Runs a known loop of exactly 2n + 1 instructions (fw_spin) and records its measured cost. */
+#define RPL_OP_CAL_SPIN 0x0F01u
+
+/* ---- Entry points whose cost is measured (cost records carry one of these). ---- */
+#define RPL_EP_NONE 0u
+#define RPL_EP_CS3_INIT 1u
+#define RPL_EP_CS3_PREDICT 2u
+#define RPL_EP_CS3_UPDATE 3u
+#define RPL_EP_CAL_SPIN 15u
+
+/* ---- Cost file: 16-byte records u16 kind, u16 id, u32 a, u32 b, u32 c. ---- */
+/* id = entry point, a = instructions, b = stack bytes (painted high-water), c = record index */
+#define RPL_COST_CALL 1u
+/* id = RPL_META_*, a = value */
+#define RPL_COST_META 2u
+/* id = 0, a = n, b = instructions (exact method), c = SysTick ticks read directly */
+#define RPL_COST_CAL 3u
+
+#define RPL_META_MEASURED 1u      /* 1: counts are real (QEMU), 0: host, no counter */
+#define RPL_META_OVERHEAD 2u      /* instructions subtracted per measurement (calibrated) */
+#define RPL_META_STACK_BYTES 3u   /* size of the stack region painted */
+#define RPL_META_SIZEOF_CS3 4u    /* sizeof(mca_cs3_t): the CS filter's whole state */
+#define RPL_META_INSTR_PER_TICK 5u /* instructions per SysTick tick the method assumes */
+
+/* Status of an op the replay itself rejects (never a core status, those are >= 0). */
+#define RPL_STATUS_FORMAT (-1)
+
+#endif /* MCA_REPLAY_OPS_H */

@@ -1,0 +1,187 @@
+/**
+ * @file mca_nav.h
+ * @brief The navigation top level a flight controller calls: IMU step, GPS step,
+ *        magnetometer step, one output struct (DESIGN.md 4, docs/ALGORITHMS.md 8).
+ *
+ * Time is uint64 microseconds on the IMU clock. GPS fixes carry their validity time on
+ * that clock (arrival minus receiver latency). No function allocates; every one returns a
+ * status and leaves the state finite and unchanged on error (exceptions documented).
+ */
+#ifndef MCA_NAV_H
+#define MCA_NAV_H
+
+#include "mca_att.h"
+#include "mca_cs.h"
+#include "mca_geo.h"
+
+/** History ring: entries and their spacing (ALGORITHMS.md 8). */
+#define MCA_HIST_LEN 64
+#define MCA_HIST_DT_US 20000
+
+/** comp_mode */
+#define MCA_COMP_OFF 0
+#define MCA_COMP_CS 1
+#define MCA_COMP_VELDIFF 2
+/** yaw_source */
+#define MCA_YAW_NONE 0
+#define MCA_YAW_MAG 1
+#define MCA_YAW_COG 2
+
+/** Fix flags */
+#define MCA_FIX_VEL_NE 1
+#define MCA_FIX_VEL_D 2
+#define MCA_FIX_ALT 4
+
+/** Output flag bits (mca_nav_output_t.flags) */
+#define MCA_FLAG_ALIGNED 1
+#define MCA_FLAG_HOME_SET 2
+#define MCA_FLAG_GPS_LOST 4
+#define MCA_FLAG_YAW_UNOBSERVED 8
+#define MCA_FLAG_GRAV_SKIPPED 16
+#define MCA_FLAG_SATURATED 32
+#define MCA_FLAG_HIST_MISS 64
+
+typedef struct {
+    mca_cs_config_t cs_h;       /**< CS configuration, N and E */
+    mca_cs_config_t cs_v;       /**< CS configuration, D */
+    mca_att_config_t att;       /**< attitude filter */
+    uint8_t comp_mode;          /**< MCA_COMP_* */
+    uint8_t yaw_source;         /**< MCA_YAW_* */
+    float cs_lag_s;             /**< pairing delay of the CS acceleration, [0, 1.2] */
+    float gps_timeout_s;        /**< no fix this long: GPS lost, > 0 */
+    float grav_period_s;        /**< observation period without GPS, > 0 */
+    float nogps_rp_var_rad2;    /**< roll/pitch variance added without GPS, >= 0 */
+    float gravity_mps2;         /**< > 0 constant; 0 normal gravity at home */
+    float imu_dt_max_s;         /**< longest accepted IMU step, > 0 */
+    float init_still_s;         /**< alignment averaging window, > 0 */
+    float init_gyro_still_rps;  /**< still: |gyro| <= this */
+    float init_acc_still_mps2;  /**< still: | |f| - g | <= this */
+    float init_timeout_s;       /**< align from what was averaged after this long */
+    float accel_sat_mps2;       /**< saturation level of any accel axis */
+    float gps_pos_sigma_m;      /**< horizontal position std when the fix gives none */
+    float gps_alt_sigma_m;      /**< vertical position std when the fix gives none */
+    float gps_vel_sigma_mps;    /**< velocity std when the fix gives none */
+    float mag_declination_rad;  /**< added to the magnetic heading */
+    float mag_yaw_sigma_rad;    /**< magnetometer heading std */
+    float cog_min_speed_mps;    /**< course over ground used above this speed */
+    float cog_sigma0_rad;       /**< base course-over-ground std */
+} mca_nav_config_t;
+
+/** One GPS fix. Absent accuracy: NaN or <= 0. */
+typedef struct {
+    uint64_t t_us;           /**< validity time, IMU clock */
+    int32_t lat_e7;          /**< 1e-7 deg */
+    int32_t lon_e7;          /**< 1e-7 deg */
+    int32_t alt_mm;          /**< mm */
+    float vel_ned_mps[3];    /**< where flagged */
+    float h_acc_m;           /**< 1-sigma horizontal */
+    float v_acc_m;           /**< 1-sigma vertical */
+    float s_acc_mps;         /**< 1-sigma speed */
+    uint8_t flags;           /**< MCA_FIX_* */
+    uint8_t fix_type;        /**< 0 none, 1 DR, 2 2D, 3 3D, 4+ better */
+} mca_gps_fix_t;
+
+/** Scratch the nav shares between its CS and attitude updates (never used at once). */
+#define MCA_NAV_WS_LEN MCA_ATT_WS_LEN /* >= MCA_CS_WS_LEN, checked in mca_nav.c */
+
+typedef struct {
+    uint32_t t_us;         /**< low 32 bits of the IMU time (wraps every 71 min; compared wrap-safe) */
+    float f_b_mps2[3];
+    float q_nb[4];
+    uint8_t saturated;
+} mca_hist_entry_t;
+
+/** Everything the filter owns (under 4 KiB; fw_report prints the figure). */
+typedef struct {
+    mca_nav_config_t cfg;
+    mca_att_t att;
+    mca_cs3_t cs;
+    mca_geo_home_t home;
+    mca_hist_entry_t hist[MCA_HIST_LEN];
+    float ws[MCA_NAV_WS_LEN];
+    uint64_t t_imu_us;       /**< newest IMU time */
+    uint64_t t_first_us;     /**< first IMU time */
+    uint64_t t_lastfix_us;   /**< validity time of the last fix used (= CS time) */
+    uint64_t t_lastgrav_us;  /**< last no-GPS observation */
+    uint64_t t_lastmag_us;   /**< last magnetometer observation */
+    uint64_t t_lastyaw_us;   /**< IMU time of the last yaw observation of any source */
+    float hist_f_sum[3];     /**< accumulator of the entry being built */
+    uint32_t hist_acc_us;    /**< time accumulated in it */
+    uint16_t hist_n;         /**< samples in it */
+    uint16_t hist_head;      /**< next slot to write */
+    uint16_t hist_count;     /**< entries written, up to MCA_HIST_LEN */
+    uint8_t hist_sat;        /**< saturated sample in the entry being built */
+    float init_f_sum[3];
+    float init_w_sum[3];
+    float init_win_s;
+    uint32_t init_n;
+    uint8_t init_still;      /**< every sample of the window was still */
+    float g_mps2;
+    float acc_comp_n[3];     /**< compensation acceleration of the last fix */
+    float vel_prev[3];       /**< velocity of the previous fix (differencing) */
+    uint64_t t_prevfix_us;
+    uint8_t prev_vel_mask;   /**< bit i: vel_prev[i] valid */
+    uint8_t have_imu;
+    uint8_t aligned;
+    uint8_t home_set;
+    uint8_t have_fix;
+    uint8_t have_mag_obs;
+    uint8_t have_yaw_obs;
+    uint32_t flags;          /**< sticky/last-event bits, MCA_FLAG_* */
+    float last_rp_t;
+    float last_gps_t[3];
+    uint32_t n_grav_obs;
+    uint32_t n_grav_skip;
+} mca_nav_t;
+
+typedef struct {
+    uint64_t t_us;
+    float q_nb[4];
+    float euler_rad[3];      /**< roll, pitch, yaw */
+    float gyro_bias_rps[3];
+    float pos_ned_m[3];
+    float vel_ned_mps[3];
+    float acc_ned_mps2[3];
+    float att_var[6];        /**< diag of the attitude P: dtheta (3), bias (3) */
+    float cs_var[9];         /**< per axis N, E, D: var p, v, a */
+    float rp_t;              /**< last roll/pitch T */
+    float gps_t[3];          /**< last GPS T per axis */
+    uint32_t flags;          /**< MCA_FLAG_* */
+    uint32_t n_grav_obs;
+    uint32_t n_grav_skip;
+} mca_nav_output_t;
+
+/** Ground vehicle defaults (ALGORITHMS.md 8). */
+void mca_nav_config_default(mca_nav_config_t *cfg);
+/** Small fixed-wing preset. */
+void mca_nav_config_fixedwing(mca_nav_config_t *cfg);
+/** Multirotor preset. */
+void mca_nav_config_multirotor(mca_nav_config_t *cfg);
+mca_status_t mca_nav_config_check(const mca_nav_config_t *cfg);
+
+/** Start a filter (not aligned, no home). @return MCA_ERR_BAD_CONFIG, MCA_ERR_NULL, MCA_OK. */
+mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg);
+
+/**
+ * IMU step (ALGORITHMS.md 8). Cost: one attitude propagation (~600 flops) plus, every
+ * history interval, an entry push; without GPS, a gravity observation every grav_period.
+ * @return MCA_ERR_NONFINITE, MCA_ERR_TIME_BACKWARDS (unchanged), MCA_ERR_BAD_DT (time
+ *         re-anchored, nothing else changed), or the status of a no-GPS observation that
+ *         failed numerically (MCA_ERR_SINGULAR), else MCA_OK.
+ */
+mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro_b_rps[3], const float accel_b_mps2[3]);
+
+/**
+ * GPS step (ALGORITHMS.md 8): CS predict + update, then the gravity observation.
+ * @return MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE,
+ *         MCA_ERR_TIME_BACKWARDS (all unchanged), CS update errors, else MCA_OK.
+ */
+mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix);
+
+/** Magnetometer step (ALGORITHMS.md 8). */
+mca_status_t mca_nav_mag(mca_nav_t *nav, uint64_t t_us, const float mag_b[3]);
+
+/** Fill the output struct. Cannot fail. */
+void mca_nav_output(const mca_nav_t *nav, mca_nav_output_t *out);
+
+#endif /* MCA_NAV_H */

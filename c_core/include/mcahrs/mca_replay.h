@@ -1,0 +1,42 @@
+/**
+ * @file mca_replay.h
+ * @brief Batch replay of a whole recording through the navigation top level, in the event
+ *        order of docs/ALGORITHMS.md 9, so hosts (Python, benches) make one call per
+ *        recording instead of one per sample. Not needed on a flight controller; the
+ *        firmware link drops it (--gc-sections) unless used.
+ */
+#ifndef MCA_REPLAY_H
+#define MCA_REPLAY_H
+
+#include "mca_nav.h"
+
+typedef struct {
+    uint64_t t_us;
+    float gyro_b_rps[3];
+    float accel_b_mps2[3];
+} mca_imu_sample_t;
+
+typedef struct {
+    uint64_t t_us;
+    float mag_b[3];
+} mca_mag_sample_t;
+
+typedef struct {
+    uint64_t t_rx_us;      /**< arrival time on the IMU clock: when the step is called */
+    mca_gps_fix_t fix;
+} mca_gps_event_t;
+
+/**
+ * Run every event through nav (already initialised by mca_nav_init) in time order.
+ * Each array must be sorted by its time. Cost: the sum of the steps.
+ * @param[out] out        n_imu outputs, one after each IMU sample
+ * @param[out] imu_status n_imu statuses (may be NULL); likewise gps_status, mag_status
+ * @return MCA_ERR_NULL when a needed pointer is NULL, else MCA_OK (per-event statuses in
+ *         the status arrays).
+ */
+mca_status_t mca_nav_replay(mca_nav_t *nav, const mca_imu_sample_t *imu, size_t n_imu,
+                            const mca_gps_event_t *gps, size_t n_gps, const mca_mag_sample_t *mag,
+                            size_t n_mag, mca_nav_output_t *out, uint8_t *imu_status,
+                            uint8_t *gps_status, uint8_t *mag_status);
+
+#endif /* MCA_REPLAY_H */

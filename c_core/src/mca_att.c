@@ -1,0 +1,256 @@
+/* Attitude EKF (DESIGN.md 4, docs/ALGORITHMS.md 7). See mca_att.h. */
+#include "mcahrs/mca_att.h"
+
+#include <math.h>
+#include <string.h>
+
+#define DEG 0.0174532925199433f
+
+void mca_att_config_default(mca_att_config_t *cfg)
+{
+    cfg->gyro_noise_rps = 3e-3f;
+    cfg->gyro_bias_rw_rps2 = 1e-4f;
+    cfg->att0_var_rad2 = (2.0f * DEG) * (2.0f * DEG);
+    cfg->yaw0_var_rad2 = (180.0f * DEG) * (180.0f * DEG);
+    cfg->bias0_var_rps2 = (0.5f * DEG) * (0.5f * DEG);
+    cfg->rp_sigma0_rad = 0.03f;
+    cfg->rp_k_dev = 1.0f;
+    cfg->max_tilt_obs_rad = 80.0f * DEG;
+}
+
+static int nonneg(float v)
+{
+    return isfinite(v) && v >= 0.0f;
+}
+
+static int pos(float v)
+{
+    return isfinite(v) && v > 0.0f;
+}
+
+mca_status_t mca_att_config_check(const mca_att_config_t *c)
+{
+    if (c == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!nonneg(c->gyro_noise_rps) || !nonneg(c->gyro_bias_rw_rps2) || !pos(c->att0_var_rad2) ||
+        !pos(c->yaw0_var_rad2) || !pos(c->bias0_var_rps2) || !pos(c->rp_sigma0_rad) || !nonneg(c->rp_k_dev) ||
+        !pos(c->max_tilt_obs_rad) || c->max_tilt_obs_rad >= 1.5707963f) {
+        return MCA_ERR_BAD_CONFIG;
+    }
+    return MCA_OK;
+}
+
+mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, const float q_nb[4], const float bias[3])
+{
+    if (att == NULL || cfg == NULL || q_nb == NULL || bias == NULL) {
+        return MCA_ERR_NULL;
+    }
+    const mca_status_t st = mca_att_config_check(cfg);
+    if (st != MCA_OK) {
+        return st;
+    }
+    if (!mca_all_finite(q_nb, 4u) || !mca_all_finite(bias, 3u)) {
+        return MCA_ERR_NONFINITE;
+    }
+    memset(att, 0, sizeof(*att));
+    att->cfg = *cfg;
+    memcpy(att->q_nb, q_nb, sizeof(att->q_nb));
+    mca_quat_normalize(att->q_nb);
+    memcpy(att->bias_rps, bias, sizeof(att->bias_rps));
+    att->p[0] = cfg->att0_var_rad2;
+    att->p[7] = cfg->att0_var_rad2;
+    att->p[14] = cfg->yaw0_var_rad2;
+    att->p[21] = cfg->bias0_var_rps2;
+    att->p[28] = cfg->bias0_var_rps2;
+    att->p[35] = cfg->bias0_var_rps2;
+    return MCA_OK;
+}
+
+mca_status_t mca_att_propagate(mca_att_t *att, const float gyro[3], float dt)
+{
+    if (att == NULL || gyro == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!mca_all_finite(gyro, 3u)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (!isfinite(dt) || !(dt > 0.0f)) {
+        return MCA_ERR_BAD_DT;
+    }
+    const float w[3] = {gyro[0] - att->bias_rps[0], gyro[1] - att->bias_rps[1], gyro[2] - att->bias_rps[2]};
+    const float rv[3] = {w[0] * dt, w[1] * dt, w[2] * dt};
+    float dq[4], qn[4];
+    mca_quat_from_rotvec(dq, rv);
+    mca_quat_mul(qn, att->q_nb, dq);
+    mca_quat_normalize(qn);
+    memcpy(att->q_nb, qn, sizeof(qn));
+    /* F = [[A, -I dt], [0, I]], A = I - [w x] dt. P = F P F^T + Qd, written out by blocks
+     * [[P11, P12], [P21, P22]] so no 6x6 temporaries are needed:
+     *   P11' = A P11 A^T - dt (A P12 + P21 A^T) + dt^2 P22
+     *   P12' = A P12 - dt P22,  P22' = P22 (+ Qd) */
+    const float a[9] = {1.0f, rv[2], -rv[1], -rv[2], 1.0f, rv[0], rv[1], -rv[0], 1.0f};
+    float p11[9], p12[9], p22[9], t1[9], t2[9];
+    for (size_t i = 0; i < 3u; ++i) {
+        for (size_t j = 0; j < 3u; ++j) {
+            p11[i * 3u + j] = att->p[i * 6u + j];
+            p12[i * 3u + j] = att->p[i * 6u + j + 3u];
+            p22[i * 3u + j] = att->p[(i + 3u) * 6u + j + 3u];
+        }
+    }
+    float ap12[9];
+    mca_mat_mul(ap12, a, p12, 3u, 3u, 3u);        /* A P12 */
+    mca_mat_mul(t1, a, p11, 3u, 3u, 3u);          /* A P11 */
+    mca_mat_mul_bt(t2, t1, a, 3u, 3u, 3u);        /* A P11 A^T */
+    const float dt2 = dt * dt;
+    for (size_t i = 0; i < 3u; ++i) {
+        for (size_t j = 0; j < 3u; ++j) {
+            /* (A P12)_ij + (P21 A^T)_ij, P21 A^T = (A P12)^T */
+            const float cross = ap12[i * 3u + j] + ap12[j * 3u + i];
+            att->p[i * 6u + j] = t2[i * 3u + j] - dt * cross + dt2 * p22[i * 3u + j];
+            const float n12 = ap12[i * 3u + j] - dt * p22[i * 3u + j];
+            att->p[i * 6u + j + 3u] = n12;
+            att->p[(j + 3u) * 6u + i] = n12;
+        }
+    }
+    const float qg = att->cfg.gyro_noise_rps * att->cfg.gyro_noise_rps * dt;
+    const float qb = att->cfg.gyro_bias_rw_rps2 * att->cfg.gyro_bias_rw_rps2 * dt;
+    for (size_t i = 0; i < 3u; ++i) {
+        att->p[i * 7u] += qg;
+        att->p[(i + 3u) * 7u] += qb;
+    }
+    mca_mat_symmetrize(att->p, 6u);
+    return MCA_OK;
+}
+
+/* Apply the error-state correction dx (ALGORITHMS.md 7). */
+static void correct(mca_att_t *att, const float dx[6])
+{
+    float dq[4], qn[4];
+    mca_quat_from_rotvec(dq, dx);
+    mca_quat_mul(qn, att->q_nb, dq);
+    mca_quat_normalize(qn);
+    memcpy(att->q_nb, qn, sizeof(qn));
+    for (size_t i = 0; i < 3u; ++i) {
+        att->bias_rps[i] += dx[3u + i];
+    }
+}
+
+/* C_D = C_nb(q_d)^T C_nb(q): current body to body at t_d. */
+static void delay_transport(float c_d[9], const float q_d[4], const float q[4])
+{
+    float cd[9], c[9];
+    mca_quat_to_dcm(cd, q_d);
+    mca_quat_to_dcm(c, q);
+    for (size_t i = 0; i < 3u; ++i) {
+        for (size_t j = 0; j < 3u; ++j) {
+            c_d[i * 3u + j] = cd[0 * 3u + i] * c[0 * 3u + j] + cd[1 * 3u + i] * c[1 * 3u + j] +
+                              cd[2 * 3u + i] * c[2 * 3u + j];
+        }
+    }
+}
+
+/* Update of the error state from zero with rows e (m x 3, at q_d), residual nu, diag R. */
+static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, const float *nu, float r,
+                                 const float q_d[4], float *ws, mca_update_report_t *rep)
+{
+    float c_d[9], h[2u * MCA_ATT_NX] = {0}, dx[MCA_ATT_NX] = {0}, rm[4] = {0};
+    delay_transport(c_d, q_d, att->q_nb);
+    for (size_t k = 0; k < m; ++k) {
+        for (size_t j = 0; j < 3u; ++j) {
+            h[k * MCA_ATT_NX + j] = e_rows[k * 3u] * c_d[j] + e_rows[k * 3u + 1u] * c_d[3u + j] +
+                                    e_rows[k * 3u + 2u] * c_d[6u + j];
+        }
+        rm[k * m + k] = r;
+    }
+    const mca_status_t st = mca_kf_update(dx, att->p, MCA_ATT_NX, h, nu, rm, m, ws, MCA_ATT_WS_LEN, rep);
+    if (st == MCA_OK) {
+        correct(att, dx);
+    }
+    return st;
+}
+
+mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4],
+                                    float g, float r_acc, float *ws, mca_update_report_t *rep)
+{
+    if (att == NULL || f == NULL || acc_n == NULL || q_d == NULL || ws == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!mca_all_finite(f, 3u) || !mca_all_finite(acc_n, 3u) || !mca_all_finite(q_d, 4u) || !isfinite(g) ||
+        !isfinite(r_acc)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (!(g > 0.0f) || r_acc < 0.0f) {
+        return MCA_ERR_BAD_ARG;
+    }
+    float c[9];
+    mca_quat_to_dcm(c, q_d);
+    float gb[3];
+    for (size_t i = 0; i < 3u; ++i) {
+        /* a_b = C_nb^T a_n; g_b = -(f - a_b) */
+        const float ab = c[i] * acc_n[0] + c[3u + i] * acc_n[1] + c[6u + i] * acc_n[2];
+        gb[i] = ab - f[i];
+    }
+    const float gn = sqrtf(gb[0] * gb[0] + gb[1] * gb[1] + gb[2] * gb[2]);
+    if (gn < 0.5f * g || gn > 1.5f * g) {
+        return MCA_ERR_BAD_ARG;
+    }
+    float eul[3];
+    mca_quat_to_euler(eul, q_d);
+    if (fabsf(eul[1]) > att->cfg.max_tilt_obs_rad) {
+        return MCA_ERR_BAD_ARG;
+    }
+    const float phi_m = atan2f(gb[1], gb[2]);
+    const float theta_m = atan2f(-gb[0], sqrtf(gb[1] * gb[1] + gb[2] * gb[2]));
+    const float nu[2] = {mca_wrap_pi(phi_m - eul[0]), theta_m - eul[1]};
+    const float sp = sinf(eul[0]), cp = cosf(eul[0]), tt = tanf(eul[1]);
+    const float e_rows[6] = {1.0f, sp * tt, cp * tt, 0.0f, cp, -sp};
+    const float dev = att->cfg.rp_k_dev * fabsf(gn - g) / g;
+    const float r = att->cfg.rp_sigma0_rad * att->cfg.rp_sigma0_rad + dev * dev + r_acc;
+    return euler_update(att, e_rows, 2u, nu, r, q_d, ws, rep);
+}
+
+mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
+                                mca_update_report_t *rep)
+{
+    if (att == NULL || q_d == NULL || ws == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!isfinite(psi_m) || !isfinite(r) || !mca_all_finite(q_d, 4u)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (!(r > 0.0f)) {
+        return MCA_ERR_BAD_ARG;
+    }
+    float eul[3];
+    mca_quat_to_euler(eul, q_d);
+    if (fabsf(eul[1]) > att->cfg.max_tilt_obs_rad) {
+        return MCA_ERR_BAD_ARG;
+    }
+    const float ct = cosf(eul[1]);
+    const float e_row[3] = {0.0f, sinf(eul[0]) / ct, cosf(eul[0]) / ct};
+    const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};
+    return euler_update(att, e_row, 1u, nu, r, q_d, ws, rep);
+}
+
+mca_status_t mca_att_mag_heading(const mca_att_t *att, const float m[3], float decl, float *psi_m)
+{
+    if (att == NULL || m == NULL || psi_m == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!mca_all_finite(m, 3u) || !isfinite(decl)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (!(m[0] * m[0] + m[1] * m[1] + m[2] * m[2] > 0.0f)) {
+        return MCA_ERR_BAD_ARG;
+    }
+    float eul[3], ql[4], c[9];
+    mca_quat_to_euler(eul, att->q_nb);
+    eul[2] = 0.0f;
+    mca_quat_from_euler(ql, eul);
+    mca_quat_to_dcm(c, ql);
+    const float mx = c[0] * m[0] + c[1] * m[1] + c[2] * m[2];
+    const float my = c[3] * m[0] + c[4] * m[1] + c[5] * m[2];
+    *psi_m = mca_wrap_pi(atan2f(-my, mx) + decl);
+    return MCA_OK;
+}

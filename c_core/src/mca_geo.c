@@ -1,0 +1,92 @@
+/* Geodetic to NED and normal gravity (docs/ALGORITHMS.md 6). See mca_geo.h. */
+#include "mcahrs/mca_geo.h"
+
+#include <math.h>
+
+#define WGS84_A 6378137.0f
+#define WGS84_E2 6.69437999014e-3f
+#define E7_TO_RAD 1.74532925199433e-9f /* 1e-7 deg in rad */
+
+mca_status_t mca_geo_check(int32_t lat_e7, int32_t lon_e7, int32_t alt_mm)
+{
+    if (lat_e7 < -900000000 || lat_e7 > 900000000 || lon_e7 < -1800000000 || lon_e7 > 1800000000 ||
+        alt_mm < -1000000 || alt_mm > 100000000) {
+        return MCA_ERR_RANGE;
+    }
+    return MCA_OK;
+}
+
+/* Latitude in rad from 1e-7 deg: split so the float product keeps its precision. */
+static float lat_rad(int32_t e7)
+{
+    const int32_t whole = e7 / 10000000; /* whole degrees */
+    const int32_t frac = e7 - whole * 10000000;
+    return (float)whole * 0.0174532925199433f + (float)frac * E7_TO_RAD;
+}
+
+mca_status_t mca_geo_set_home(mca_geo_home_t *home, int32_t lat_e7, int32_t lon_e7, int32_t alt_mm)
+{
+    if (home == NULL) {
+        return MCA_ERR_NULL;
+    }
+    const mca_status_t st = mca_geo_check(lat_e7, lon_e7, alt_mm);
+    if (st != MCA_OK) {
+        return st;
+    }
+    const float phi = lat_rad(lat_e7);
+    home->lat_e7 = lat_e7;
+    home->lon_e7 = lon_e7;
+    home->alt_mm = alt_mm;
+    home->sin_lat = sinf(phi);
+    home->cos_lat = cosf(phi);
+    home->root = sqrtf(1.0f - WGS84_E2 * home->sin_lat * home->sin_lat);
+    home->n_m = WGS84_A / home->root;
+    return MCA_OK;
+}
+
+mca_status_t mca_geo_to_ned(const mca_geo_home_t *home, int32_t lat_e7, int32_t lon_e7, int32_t alt_mm,
+                            float ned_m[3])
+{
+    if (home == NULL || ned_m == NULL) {
+        return MCA_ERR_NULL;
+    }
+    const mca_status_t st = mca_geo_check(lat_e7, lon_e7, alt_mm);
+    if (st != MCA_OK) {
+        return st;
+    }
+    /* integer differences; longitude wrapped across the antimeridian */
+    const int64_t dlat_e7 = (int64_t)lat_e7 - (int64_t)home->lat_e7;
+    int64_t dlon_e7 = (int64_t)lon_e7 - (int64_t)home->lon_e7;
+    if (dlon_e7 > 1800000000) {
+        dlon_e7 -= 3600000000LL;
+    } else if (dlon_e7 < -1800000000) {
+        dlon_e7 += 3600000000LL;
+    }
+    const float dphi = (float)dlat_e7 * E7_TO_RAD;
+    const float dlam = (float)dlon_e7 * E7_TO_RAD;
+    const float dh = (float)((int64_t)alt_mm - (int64_t)home->alt_mm) * 1e-3f;
+    const float h0 = (float)home->alt_mm * 1e-3f;
+    const float s0 = home->sin_lat, c0 = home->cos_lat;
+    const float phi1 = lat_rad(lat_e7);
+    const float s1 = sinf(phi1), c1 = cosf(phi1);
+    /* s1 - s0 = 2 cos(mean) sin(dphi/2), without cancellation */
+    const float phim = lat_rad(home->lat_e7) + 0.5f * dphi;
+    const float ds = 2.0f * cosf(phim) * sinf(0.5f * dphi);
+    const float root1 = sqrtf(1.0f - WGS84_E2 * s1 * s1);
+    const float n0 = home->n_m, n1 = WGS84_A / root1;
+    const float dn = n0 * n1 * WGS84_E2 * ds * (s1 + s0) / (WGS84_A * (root1 + home->root));
+    const float nh1 = n1 + h0 + dh;
+    const float sdl2 = sinf(0.5f * dlam), sdp2 = sinf(0.5f * dphi);
+    const float ecc = WGS84_E2 * (n1 * ds + dn * s0); /* e2 (N1 s1 - N0 s0) */
+    ned_m[1] = nh1 * c1 * sinf(dlam);
+    ned_m[0] = nh1 * (sinf(dphi) + 2.0f * s0 * c1 * sdl2 * sdl2) - c0 * ecc;
+    const float up = dn + dh - nh1 * (2.0f * sdp2 * sdp2 + 2.0f * c0 * c1 * sdl2 * sdl2) - s0 * ecc;
+    ned_m[2] = -up;
+    return MCA_OK;
+}
+
+float mca_geo_gravity(float lat, float h)
+{
+    const float s2 = sinf(lat) * sinf(lat);
+    return 9.7803253359f * (1.0f + 0.00193185265241f * s2) / sqrtf(1.0f - WGS84_E2 * s2) - 3.086e-6f * h;
+}

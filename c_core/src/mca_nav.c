@@ -1,0 +1,507 @@
+/* Navigation top level (DESIGN.md 4, docs/ALGORITHMS.md 8). See mca_nav.h. */
+#include "mcahrs/mca_nav.h"
+
+#include <math.h>
+#include <string.h>
+
+#define DEG 0.0174532925199433f
+#define G0 9.80665f
+#define YAW_STALE_US 10000000u
+
+/* compile-time check: the shared scratch fits both updates */
+typedef char mca_nav_ws_fits_cs[(MCA_NAV_WS_LEN >= MCA_CS_WS_LEN) ? 1 : -1];
+
+void mca_nav_config_default(mca_nav_config_t *c)
+{
+    memset(c, 0, sizeof(*c));
+    mca_cs_config_default_h(&c->cs_h);
+    mca_cs_config_default_v(&c->cs_v);
+    mca_att_config_default(&c->att);
+    c->comp_mode = MCA_COMP_CS;
+    c->yaw_source = MCA_YAW_NONE;
+    c->cs_lag_s = 0.3f;
+    c->gps_timeout_s = 1.5f;
+    c->grav_period_s = 0.1f;
+    c->nogps_rp_var_rad2 = 0.05f * 0.05f;
+    c->gravity_mps2 = 0.0f;
+    c->imu_dt_max_s = 0.1f;
+    c->init_still_s = 1.0f;
+    c->init_gyro_still_rps = 0.05f;
+    c->init_acc_still_mps2 = 0.5f;
+    c->init_timeout_s = 5.0f;
+    c->accel_sat_mps2 = 156.9f;
+    c->gps_pos_sigma_m = 2.5f;
+    c->gps_alt_sigma_m = 5.0f;
+    c->gps_vel_sigma_mps = 0.2f;
+    c->mag_declination_rad = 0.0f;
+    c->mag_yaw_sigma_rad = 0.05f;
+    c->cog_min_speed_mps = 5.0f;
+    c->cog_sigma0_rad = 0.05f;
+}
+
+void mca_nav_config_fixedwing(mca_nav_config_t *c)
+{
+    mca_nav_config_default(c);
+    c->yaw_source = MCA_YAW_COG;
+    c->cs_h.a_max_mps2 = 8.0f;
+    c->cs_h.tau_a_s = 3.0f;
+    c->cs_v.tau_a_s = 3.0f;
+    c->cs_lag_s = 0.3f;
+    c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
+}
+
+void mca_nav_config_multirotor(mca_nav_config_t *c)
+{
+    mca_nav_config_default(c);
+    c->yaw_source = MCA_YAW_MAG;
+    c->cs_h.a_max_mps2 = 5.0f;
+    c->cs_h.tau_a_s = 1.0f;
+    c->cs_v.tau_a_s = 1.0f;
+    c->cs_lag_s = 0.2f;
+    c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
+}
+
+static int pos(float v)
+{
+    return isfinite(v) && v > 0.0f;
+}
+
+static int nonneg(float v)
+{
+    return isfinite(v) && v >= 0.0f;
+}
+
+mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
+{
+    if (c == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (mca_cs_config_check(&c->cs_h) != MCA_OK || mca_cs_config_check(&c->cs_v) != MCA_OK ||
+        mca_att_config_check(&c->att) != MCA_OK) {
+        return MCA_ERR_BAD_CONFIG;
+    }
+    /* the pairing delay plus one entry must fit in the history ring */
+    const float hist_s = (float)(MCA_HIST_LEN - 1) * (float)MCA_HIST_DT_US * 1e-6f;
+    if (c->comp_mode > MCA_COMP_VELDIFF || c->yaw_source > MCA_YAW_COG || !nonneg(c->cs_lag_s) ||
+        c->cs_lag_s > hist_s || !pos(c->gps_timeout_s) || !pos(c->grav_period_s) ||
+        !nonneg(c->nogps_rp_var_rad2) || !nonneg(c->gravity_mps2) || !pos(c->imu_dt_max_s) ||
+        !pos(c->init_still_s) || !nonneg(c->init_gyro_still_rps) || !nonneg(c->init_acc_still_mps2) ||
+        !pos(c->init_timeout_s) || !pos(c->accel_sat_mps2) || !pos(c->gps_pos_sigma_m) ||
+        !pos(c->gps_alt_sigma_m) || !pos(c->gps_vel_sigma_mps) || !isfinite(c->mag_declination_rad) ||
+        !pos(c->mag_yaw_sigma_rad) || !nonneg(c->cog_min_speed_mps) || !pos(c->cog_sigma0_rad)) {
+        return MCA_ERR_BAD_CONFIG;
+    }
+    return MCA_OK;
+}
+
+mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg)
+{
+    if (nav == NULL || cfg == NULL) {
+        return MCA_ERR_NULL;
+    }
+    const mca_status_t st = mca_nav_config_check(cfg);
+    if (st != MCA_OK) {
+        return st;
+    }
+    memset(nav, 0, sizeof(*nav));
+    nav->cfg = *cfg;
+    nav->g_mps2 = cfg->gravity_mps2 > 0.0f ? cfg->gravity_mps2 : G0;
+    nav->att.q_nb[0] = 1.0f;
+    return MCA_OK;
+}
+
+static float norm3(const float v[3])
+{
+    return sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
+
+static void align(mca_nav_t *nav, const float f_mean[3], const float bias[3])
+{
+    const float eul[3] = {atan2f(-f_mean[1], -f_mean[2]),
+                          atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])), 0.0f};
+    float q[4];
+    mca_quat_from_euler(q, eul);
+    (void)mca_att_init(&nav->att, &nav->cfg.att, q, bias); /* config checked at init */
+    nav->aligned = 1u;
+    nav->t_lastgrav_us = nav->t_imu_us;
+}
+
+/* ALGORITHMS.md 8, IMU step 4. */
+static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f[3], float dt)
+{
+    const float g = nav->g_mps2;
+    const int still = norm3(w) <= nav->cfg.init_gyro_still_rps && fabsf(norm3(f) - g) <= nav->cfg.init_acc_still_mps2;
+    if (still) {
+        for (size_t i = 0; i < 3u; ++i) {
+            nav->init_f_sum[i] += f[i];
+            nav->init_w_sum[i] += w[i];
+        }
+        nav->init_n++;
+        nav->init_win_s += dt;
+    } else {
+        memset(nav->init_f_sum, 0, sizeof(nav->init_f_sum));
+        memset(nav->init_w_sum, 0, sizeof(nav->init_w_sum));
+        nav->init_n = 0u;
+        nav->init_win_s = 0.0f;
+    }
+    const float zero[3] = {0.0f, 0.0f, 0.0f};
+    if (nav->init_n > 0u && nav->init_win_s >= nav->cfg.init_still_s) {
+        const float inv = 1.0f / (float)nav->init_n;
+        const float fm[3] = {nav->init_f_sum[0] * inv, nav->init_f_sum[1] * inv, nav->init_f_sum[2] * inv};
+        const float wm[3] = {nav->init_w_sum[0] * inv, nav->init_w_sum[1] * inv, nav->init_w_sum[2] * inv};
+        align(nav, fm, wm);
+    } else if ((float)(nav->t_imu_us - nav->t_first_us) * 1e-6f >= nav->cfg.init_timeout_s) {
+        if (nav->init_n > 0u) {
+            const float inv = 1.0f / (float)nav->init_n;
+            const float fm[3] = {nav->init_f_sum[0] * inv, nav->init_f_sum[1] * inv, nav->init_f_sum[2] * inv};
+            align(nav, fm, zero);
+        } else {
+            align(nav, f, zero);
+        }
+    }
+}
+
+static void hist_accumulate(mca_nav_t *nav, const float f[3], uint32_t dt_us, int sat)
+{
+    for (size_t i = 0; i < 3u; ++i) {
+        nav->hist_f_sum[i] += f[i];
+    }
+    nav->hist_n++;
+    nav->hist_acc_us += dt_us;
+    nav->hist_sat = (uint8_t)(nav->hist_sat | (sat ? 1u : 0u));
+    if (nav->hist_acc_us >= (uint32_t)MCA_HIST_DT_US) {
+        mca_hist_entry_t *e = &nav->hist[nav->hist_head];
+        const float inv = 1.0f / (float)nav->hist_n;
+        e->t_us = (uint32_t)nav->t_imu_us;
+        for (size_t i = 0; i < 3u; ++i) {
+            e->f_b_mps2[i] = nav->hist_f_sum[i] * inv;
+        }
+        memcpy(e->q_nb, nav->att.q_nb, sizeof(e->q_nb));
+        e->saturated = nav->hist_sat;
+        nav->hist_head = (uint16_t)((nav->hist_head + 1u) % MCA_HIST_LEN);
+        if (nav->hist_count < MCA_HIST_LEN) {
+            nav->hist_count++;
+        }
+        memset(nav->hist_f_sum, 0, sizeof(nav->hist_f_sum));
+        nav->hist_n = 0u;
+        nav->hist_acc_us = 0u;
+        nav->hist_sat = 0u;
+    }
+}
+
+/* Entry nearest t (ties: the older); NULL when empty or t older than the oldest entry. */
+static const mca_hist_entry_t *hist_find(const mca_nav_t *nav, int64_t t)
+{
+    if (nav->hist_count == 0u) {
+        return NULL;
+    }
+    const uint16_t oldest = (uint16_t)((nav->hist_head + MCA_HIST_LEN - nav->hist_count) % MCA_HIST_LEN);
+    /* wrap-safe signed differences of the low 32 bits (entries span < 2 s) */
+    const uint32_t t32 = (uint32_t)t;
+    if ((int32_t)(t32 - nav->hist[oldest].t_us) < 0) {
+        return NULL;
+    }
+    const mca_hist_entry_t *best = NULL;
+    int64_t best_d = 0;
+    for (uint16_t k = 0; k < nav->hist_count; ++k) { /* oldest to newest */
+        const mca_hist_entry_t *e = &nav->hist[(oldest + k) % MCA_HIST_LEN];
+        int64_t d = (int64_t)(int32_t)(e->t_us - t32);
+        d = d < 0 ? -d : d;
+        if (best == NULL || d < best_d) {
+            best = e;
+            best_d = d;
+        }
+    }
+    return best;
+}
+
+static const mca_hist_entry_t *hist_newest(const mca_nav_t *nav)
+{
+    if (nav->hist_count == 0u) {
+        return NULL;
+    }
+    return &nav->hist[(nav->hist_head + MCA_HIST_LEN - 1u) % MCA_HIST_LEN];
+}
+
+/* One roll/pitch observation from a history entry; counts and flags. */
+static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const float q_d[4], const float acc_n[3],
+                                float r_acc)
+{
+    if (e == NULL) {
+        nav->flags |= MCA_FLAG_HIST_MISS | MCA_FLAG_GRAV_SKIPPED;
+        nav->n_grav_skip++;
+        return MCA_OK;
+    }
+    nav->flags &= ~(uint32_t)MCA_FLAG_HIST_MISS;
+    if (e->saturated) {
+        nav->flags |= MCA_FLAG_GRAV_SKIPPED;
+        nav->n_grav_skip++;
+        return MCA_OK;
+    }
+    mca_update_report_t rep;
+    const mca_status_t st = mca_att_update_gravity(&nav->att, e->f_b_mps2, acc_n, q_d != NULL ? q_d : e->q_nb,
+                                                   nav->g_mps2, r_acc, nav->ws, &rep);
+    if (st == MCA_OK) {
+        nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
+        nav->n_grav_obs++;
+        nav->last_rp_t = rep.t_stat;
+        return MCA_OK;
+    }
+    nav->flags |= MCA_FLAG_GRAV_SKIPPED;
+    nav->n_grav_skip++;
+    return st == MCA_ERR_BAD_ARG ? MCA_OK : st; /* a gate is not an error of the caller */
+}
+
+static int gps_lost(const mca_nav_t *nav, uint64_t t)
+{
+    return !nav->have_fix || (t > nav->t_lastfix_us &&
+                              (float)(t - nav->t_lastfix_us) * 1e-6f > nav->cfg.gps_timeout_s);
+}
+
+mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], const float accel[3])
+{
+    if (nav == NULL || gyro == NULL || accel == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!mca_all_finite(gyro, 3u) || !mca_all_finite(accel, 3u)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (!nav->have_imu) {
+        nav->have_imu = 1u;
+        nav->t_imu_us = t_us;
+        nav->t_first_us = t_us;
+        return MCA_OK;
+    }
+    if (t_us <= nav->t_imu_us) {
+        return MCA_ERR_TIME_BACKWARDS;
+    }
+    const uint64_t dt_us = t_us - nav->t_imu_us;
+    const float dt = (float)dt_us * 1e-6f;
+    nav->t_imu_us = t_us;
+    if (dt > nav->cfg.imu_dt_max_s) {
+        return MCA_ERR_BAD_DT; /* re-anchored only */
+    }
+    const float sat = nav->cfg.accel_sat_mps2;
+    const int saturated = fabsf(accel[0]) >= sat || fabsf(accel[1]) >= sat || fabsf(accel[2]) >= sat;
+    if (saturated) {
+        nav->flags |= MCA_FLAG_SATURATED;
+    }
+    if (!nav->aligned) {
+        accumulate_alignment(nav, gyro, accel, dt);
+        return MCA_OK;
+    }
+    (void)mca_att_propagate(&nav->att, gyro, dt); /* inputs checked above */
+    hist_accumulate(nav, accel, (uint32_t)dt_us, saturated);
+    if (gps_lost(nav, t_us) &&
+        (float)(t_us - nav->t_lastgrav_us) * 1e-6f >= nav->cfg.grav_period_s) {
+        nav->t_lastgrav_us = t_us;
+        float acc[3] = {0.0f, 0.0f, 0.0f};
+        if (nav->cfg.comp_mode == MCA_COMP_CS && nav->have_fix) {
+            const float age = (float)(t_us - nav->t_lastfix_us) * 1e-6f;
+            for (size_t i = 0; i < 3u; ++i) {
+                const float tau = i < 2u ? nav->cfg.cs_h.tau_a_s : nav->cfg.cs_v.tau_a_s;
+                acc[i] = age <= 4.0f * tau ? nav->acc_comp_n[i] * expf(-age / tau) : 0.0f;
+            }
+        }
+        return gravity_obs(nav, hist_newest(nav), nav->att.q_nb, acc, nav->cfg.nogps_rp_var_rad2);
+    }
+    return MCA_OK;
+}
+
+static float sigma_or(float s, float dflt)
+{
+    return (isfinite(s) && s > 0.0f) ? s : dflt;
+}
+
+mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
+{
+    if (nav == NULL || fix == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (fix->fix_type < 2u) {
+        return MCA_ERR_BAD_ARG;
+    }
+    const int has_alt = (fix->flags & MCA_FIX_ALT) != 0u;
+    const int has_vne = (fix->flags & MCA_FIX_VEL_NE) != 0u;
+    const int has_vd = (fix->flags & MCA_FIX_VEL_D) != 0u;
+    if (mca_geo_check(fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0) != MCA_OK) {
+        return MCA_ERR_RANGE;
+    }
+    if ((has_vne && (!isfinite(fix->vel_ned_mps[0]) || !isfinite(fix->vel_ned_mps[1]))) ||
+        (has_vd && !isfinite(fix->vel_ned_mps[2]))) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (nav->have_fix && fix->t_us <= nav->t_lastfix_us) {
+        return MCA_ERR_TIME_BACKWARDS;
+    }
+    const float vel[3] = {has_vne ? fix->vel_ned_mps[0] : 0.0f, has_vne ? fix->vel_ned_mps[1] : 0.0f,
+                          has_vd ? fix->vel_ned_mps[2] : 0.0f};
+    const uint8_t vmask = (uint8_t)((has_vne ? 3u : 0u) | (has_vd ? 4u : 0u));
+    const float h_acc = sigma_or(fix->h_acc_m, nav->cfg.gps_pos_sigma_m);
+    const float v_acc = sigma_or(fix->v_acc_m, nav->cfg.gps_alt_sigma_m);
+    const float s_acc = sigma_or(fix->s_acc_mps, nav->cfg.gps_vel_sigma_mps);
+
+    if (!nav->home_set) {
+        (void)mca_geo_set_home(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
+        nav->home_set = 1u;
+        if (!(nav->cfg.gravity_mps2 > 0.0f)) {
+            const float lat = (float)fix->lat_e7 * 1.74532925199433e-9f;
+            nav->g_mps2 = mca_geo_gravity(lat, (float)nav->home.alt_mm * 1e-3f);
+        }
+        (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, NULL, vel);
+        memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
+    } else {
+        float ned[3];
+        (void)mca_geo_to_ned(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : nav->home.alt_mm, ned);
+        const float t = (float)(fix->t_us - nav->t_lastfix_us) * 1e-6f;
+        if (t > nav->cfg.cs_h.dt_max_s || t > nav->cfg.cs_v.dt_max_s) {
+            (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel);
+            memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
+        } else {
+            mca_status_t st = mca_cs3_predict(&nav->cs, t);
+            if (st != MCA_OK) {
+                return st;
+            }
+            const uint8_t mask[3] = {(uint8_t)(MCA_CS_POS | (has_vne ? MCA_CS_VEL : 0u)),
+                                     (uint8_t)(MCA_CS_POS | (has_vne ? MCA_CS_VEL : 0u)),
+                                     (uint8_t)(((has_alt && fix->fix_type >= 3u) ? MCA_CS_POS : 0u) |
+                                               (has_vd ? MCA_CS_VEL : 0u))};
+            const float rp[3] = {h_acc * h_acc, h_acc * h_acc, v_acc * v_acc};
+            const float rv[3] = {s_acc * s_acc, s_acc * s_acc, s_acc * s_acc};
+            mca_update_report_t rep[3];
+            st = mca_cs3_update(&nav->cs, ned, vel, rp, rv, mask, nav->ws, rep);
+            for (size_t i = 0; i < 3u; ++i) {
+                if (mask[i] != 0u) {
+                    nav->last_gps_t[i] = rep[i].t_stat;
+                }
+            }
+            if (st != MCA_OK) {
+                return st;
+            }
+            /* compensation acceleration (step 5) and the observation (step 6) */
+            const float g2 = nav->g_mps2 * nav->g_mps2;
+            float acc[3] = {0.0f, 0.0f, 0.0f};
+            float r_acc = 0.0f;
+            int observe = nav->aligned;
+            const mca_hist_entry_t *e = NULL;
+            if (nav->cfg.comp_mode == MCA_COMP_CS) {
+                for (size_t i = 0; i < 3u; ++i) {
+                    acc[i] = nav->cs.axis[i].x[2];
+                }
+                r_acc = (nav->cs.axis[0].p[12] + nav->cs.axis[1].p[12]) / (2.0f * g2);
+                e = hist_find(nav, (int64_t)fix->t_us - (int64_t)(nav->cfg.cs_lag_s * 1e6f));
+            } else if (nav->cfg.comp_mode == MCA_COMP_VELDIFF) {
+                const float dtf = (float)(fix->t_us - nav->t_prevfix_us) * 1e-6f;
+                if (dtf > nav->cfg.gps_timeout_s) {
+                    observe = 0;
+                }
+                for (size_t i = 0; i < 3u; ++i) {
+                    const uint8_t bit = (uint8_t)(1u << i);
+                    if ((vmask & bit) != 0u && (nav->prev_vel_mask & bit) != 0u) {
+                        acc[i] = (vel[i] - nav->vel_prev[i]) / dtf;
+                    }
+                }
+                r_acc = 2.0f * s_acc * s_acc / (dtf * dtf * g2);
+                e = hist_find(nav, (int64_t)fix->t_us);
+            } else {
+                e = hist_newest(nav);
+            }
+            memcpy(nav->acc_comp_n, acc, sizeof(acc));
+            if (observe) {
+                st = gravity_obs(nav, e, NULL, acc, r_acc);
+                if (st != MCA_OK) {
+                    return st;
+                }
+                const float speed = sqrtf(vel[0] * vel[0] + vel[1] * vel[1]);
+                if (nav->cfg.yaw_source == MCA_YAW_COG && has_vne && speed >= nav->cfg.cog_min_speed_mps &&
+                    speed > 0.0f) {
+                    const mca_hist_entry_t *ec = hist_find(nav, (int64_t)fix->t_us);
+                    if (ec != NULL) {
+                        const float r = nav->cfg.cog_sigma0_rad * nav->cfg.cog_sigma0_rad +
+                                        (s_acc / speed) * (s_acc / speed);
+                        if (mca_att_update_yaw(&nav->att, atan2f(vel[1], vel[0]), r, ec->q_nb, nav->ws, NULL) == MCA_OK) {
+                            nav->t_lastyaw_us = nav->t_imu_us;
+                            nav->have_yaw_obs = 1u;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    nav->have_fix = 1u;
+    nav->t_lastfix_us = fix->t_us;
+    nav->t_prevfix_us = fix->t_us;
+    memcpy(nav->vel_prev, vel, sizeof(vel));
+    nav->prev_vel_mask = vmask;
+    return MCA_OK;
+}
+
+mca_status_t mca_nav_mag(mca_nav_t *nav, uint64_t t_us, const float mag_b[3])
+{
+    if (nav == NULL || mag_b == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!mca_all_finite(mag_b, 3u)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (nav->cfg.yaw_source != MCA_YAW_MAG || !nav->aligned) {
+        return MCA_OK;
+    }
+    if (nav->have_mag_obs && (t_us < nav->t_lastmag_us ||
+                              (float)(t_us - nav->t_lastmag_us) * 1e-6f < nav->cfg.grav_period_s)) {
+        return MCA_OK;
+    }
+    float psi;
+    mca_status_t st = mca_att_mag_heading(&nav->att, mag_b, nav->cfg.mag_declination_rad, &psi);
+    if (st != MCA_OK) {
+        return st;
+    }
+    st = mca_att_update_yaw(&nav->att, psi, nav->cfg.mag_yaw_sigma_rad * nav->cfg.mag_yaw_sigma_rad,
+                            nav->att.q_nb, nav->ws, NULL);
+    if (st == MCA_OK) {
+        nav->t_lastmag_us = t_us;
+        nav->have_mag_obs = 1u;
+        nav->t_lastyaw_us = nav->t_imu_us;
+        nav->have_yaw_obs = 1u;
+        return MCA_OK;
+    }
+    return st == MCA_ERR_BAD_ARG ? MCA_OK : st;
+}
+
+void mca_nav_output(const mca_nav_t *nav, mca_nav_output_t *out)
+{
+    if (nav == NULL || out == NULL) {
+        return;
+    }
+    memset(out, 0, sizeof(*out));
+    out->t_us = nav->t_imu_us;
+    memcpy(out->q_nb, nav->att.q_nb, sizeof(out->q_nb));
+    mca_quat_to_euler(out->euler_rad, nav->att.q_nb);
+    memcpy(out->gyro_bias_rps, nav->att.bias_rps, sizeof(out->gyro_bias_rps));
+    const float tau = nav->have_fix ? ((float)((int64_t)nav->t_imu_us - (int64_t)nav->t_lastfix_us) * 1e-6f) : 0.0f;
+    for (size_t i = 0; i < 3u; ++i) {
+        const mca_cs_axis_t *ax = &nav->cs.axis[i];
+        out->pos_ned_m[i] = ax->x[0] + ax->x[1] * tau + 0.5f * ax->x[2] * tau * tau;
+        out->vel_ned_mps[i] = ax->x[1] + ax->x[2] * tau;
+        out->acc_ned_mps2[i] = ax->x[2];
+        out->cs_var[i * 3u] = ax->p[0];
+        out->cs_var[i * 3u + 1u] = ax->p[6];
+        out->cs_var[i * 3u + 2u] = ax->p[12];
+        out->gps_t[i] = nav->last_gps_t[i];
+    }
+    for (size_t i = 0; i < 6u; ++i) {
+        out->att_var[i] = nav->att.p[i * 7u];
+    }
+    out->rp_t = nav->last_rp_t;
+    uint32_t f = nav->flags;
+    f |= nav->aligned ? (uint32_t)MCA_FLAG_ALIGNED : 0u;
+    f |= nav->home_set ? (uint32_t)MCA_FLAG_HOME_SET : 0u;
+    f |= gps_lost(nav, nav->t_imu_us) ? (uint32_t)MCA_FLAG_GPS_LOST : 0u;
+    if (nav->cfg.yaw_source == MCA_YAW_NONE || !nav->have_yaw_obs ||
+        nav->t_imu_us - nav->t_lastyaw_us > (uint64_t)YAW_STALE_US) {
+        f |= MCA_FLAG_YAW_UNOBSERVED;
+    }
+    out->flags = f;
+    out->n_grav_obs = nav->n_grav_obs;
+    out->n_grav_skip = nav->n_grav_skip;
+}

@@ -1,0 +1,327 @@
+"""Python face of the C core: the exact float32 code that flies, through cffi (API mode).
+
+The cffi module is private; this module checks dtypes and shapes, maps status codes to
+:mod:`mcahrs.errors` exceptions, and owns the C state. Sizes and struct layouts are read
+from the compiled C (``ffi.sizeof``, ``ffi.typeof(...).fields``), never repeated here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from mcahrs import errors
+from mcahrs._mcahrs_cffi import ffi, lib
+from mcahrs.samples import GNSS_HAS_ALT, GNSS_HAS_VEL_D, GNSS_HAS_VEL_NE, Recording
+
+_STATUS_ERRORS: dict[int, type[errors.McaError]] = {
+    lib.MCA_ERR_NULL: errors.NullError,
+    lib.MCA_ERR_BAD_DT: errors.BadDtError,
+    lib.MCA_ERR_NONFINITE: errors.NonFiniteError,
+    lib.MCA_ERR_SINGULAR: errors.SingularError,
+    lib.MCA_ERR_BAD_MASK: errors.BadMaskError,
+    lib.MCA_ERR_BAD_ARG: errors.BadArgError,
+    lib.MCA_ERR_BAD_CONFIG: errors.BadConfigError,
+    lib.MCA_ERR_TIME_BACKWARDS: errors.TimeBackwardsError,
+    lib.MCA_ERR_RANGE: errors.RangeError,
+    lib.MCA_ERR_NOT_INIT: errors.NotInitError,
+}
+
+STATUS_NAMES: dict[int, str] = {0: "OK", **{k: v.__name__ for k, v in _STATUS_ERRORS.items()}}
+
+
+def check(status: int, what: str) -> None:
+    """Raise the exception of a C status code (no-op for MCA_OK)."""
+    if status != lib.MCA_OK:
+        exc = _STATUS_ERRORS.get(status, errors.McaError)
+        raise exc(f"{what}: status {status} ({exc.__name__})")
+
+
+# ---------------------------------------------------------------- struct <-> NumPy
+
+_PRIMS = {
+    "float": np.float32, "double": np.float64, "uint8_t": np.uint8, "int8_t": np.int8,
+    "uint16_t": np.uint16, "int16_t": np.int16, "uint32_t": np.uint32, "int32_t": np.int32,
+    "uint64_t": np.uint64, "int64_t": np.int64, "int": np.intc, "size_t": np.uintp,
+}
+
+
+def _ctype_dtype(t: Any) -> np.dtype:
+    if t.kind == "primitive":
+        return np.dtype(_PRIMS[t.cname])
+    if t.kind == "enum":
+        return np.dtype(np.intc)
+    if t.kind == "array":
+        return np.dtype((_ctype_dtype(t.item), (t.length,)))
+    if t.kind == "struct":
+        return struct_dtype(t.cname)
+    raise TypeError(f"no NumPy dtype for C type {t.cname}")
+
+
+def struct_dtype(cname: str) -> np.dtype:
+    """NumPy structured dtype with the exact layout (offsets, size) of a C struct."""
+    t = ffi.typeof(cname)
+    names, formats, offsets = [], [], []
+    for name, field in t.fields:
+        names.append(name)
+        formats.append(_ctype_dtype(field.type))
+        offsets.append(field.offset)
+    return np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": ffi.sizeof(t)})
+
+
+def _as_f32(x: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
+    a = np.ascontiguousarray(x, dtype=np.float32)
+    if a.shape != shape:
+        raise errors.BadArgError(f"{name}: expected shape {shape}, got {a.shape}")
+    return a
+
+
+def _fptr(a: np.ndarray) -> Any:
+    return ffi.cast("float *", ffi.from_buffer(a))
+
+
+def _struct_type(obj: Any) -> Any:
+    t = ffi.typeof(obj)
+    return t.item if t.kind == "pointer" else t
+
+
+def _struct_to_dict(obj: Any) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for name, field in _struct_type(obj).fields:
+        v = getattr(obj, name)
+        if field.type.kind == "struct":
+            out[name] = _struct_to_dict(v)
+        elif field.type.kind == "array":
+            out[name] = list(v)
+        else:
+            out[name] = v
+    return out
+
+
+def _apply(obj: Any, overrides: Mapping[str, Any], where: str) -> None:
+    """Set struct fields from a mapping; nested structs by dict or dotted names."""
+    fields = dict(_struct_type(obj).fields)
+    for key, value in overrides.items():
+        head, _, rest = key.partition(".")
+        if head not in fields:
+            raise errors.BadConfigError(f"{where}: no field {head!r} (known: {', '.join(fields)})")
+        if rest:
+            _apply(getattr(obj, head), {rest: value}, f"{where}.{head}")
+        elif isinstance(value, Mapping):
+            _apply(getattr(obj, head), value, f"{where}.{head}")
+        else:
+            setattr(obj, head, value)
+
+
+# ---------------------------------------------------------------- CS filter
+
+def cs_config(vertical: bool = False, **overrides: Any) -> Any:
+    """A ``mca_cs_config_t`` with the documented defaults (horizontal or vertical) and overrides."""
+    cfg = ffi.new("mca_cs_config_t *")
+    (lib.mca_cs_config_default_v if vertical else lib.mca_cs_config_default_h)(cfg)
+    _apply(cfg, overrides, "mca_cs_config_t")
+    check(lib.mca_cs_config_check(cfg), "mca_cs_config_t")
+    return cfg
+
+
+def cs_transition(cfg: Any, t_s: float, s2: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact CS transition Phi and process noise Q (5 x 5, float32) of the C core."""
+    phi = np.zeros(25, np.float32)
+    q = np.zeros(25, np.float32)
+    lib.mca_cs_transition(cfg, t_s, s2, _fptr(phi), _fptr(q))
+    return phi.reshape(5, 5), q.reshape(5, 5)
+
+
+def singer_q(alpha: float, t_s: float, s2: float) -> np.ndarray:
+    """The C core's Singer 3 x 3 process noise (float32)."""
+    q = np.zeros(9, np.float32)
+    lib.mca_cs_singer_q(alpha, t_s, s2, _fptr(q))
+    return q.reshape(3, 3)
+
+
+class Cs3:
+    """Three-axis (N, E, D) CS maneuver filter of the C core."""
+
+    def __init__(self, cfg_h: Any = None, cfg_v: Any = None, pos_ned_m: Any = None,
+                 vel_ned_mps: Any = None) -> None:
+        self._cs = ffi.new("mca_cs3_t *")
+        self._ws = ffi.new("float[]", lib.MCA_CS_WS_LEN)
+        self._rep = ffi.new("mca_update_report_t[3]")
+        cfg_h = cfg_h if cfg_h is not None else cs_config(False)
+        cfg_v = cfg_v if cfg_v is not None else cs_config(True)
+        p = ffi.NULL if pos_ned_m is None else _fptr(_as_f32(pos_ned_m, (3,), "pos_ned_m"))
+        v = ffi.NULL if vel_ned_mps is None else _fptr(_as_f32(vel_ned_mps, (3,), "vel_ned_mps"))
+        check(lib.mca_cs3_init(self._cs, cfg_h, cfg_v, p, v), "mca_cs3_init")
+
+    def predict(self, t_s: float) -> None:
+        check(lib.mca_cs3_predict(self._cs, t_s), f"mca_cs3_predict(t_s={t_s!r})")
+
+    def update(self, pos_ned_m: Any, vel_ned_mps: Any, r_pos_m2: Any, r_vel_m2ps2: Any,
+               mask: Any) -> dict[str, np.ndarray]:
+        """Update; returns per-axis ``m``, ``nu`` (3 x 2), ``c`` (3 x 2 x 2), ``t_stat`` (3)."""
+        arrs = [_as_f32(a, (3,), n) for a, n in ((pos_ned_m, "pos_ned_m"), (vel_ned_mps, "vel_ned_mps"),
+                                                 (r_pos_m2, "r_pos_m2"), (r_vel_m2ps2, "r_vel_m2ps2"))]
+        m = np.ascontiguousarray(mask, dtype=np.uint8)
+        if m.shape != (3,):
+            raise errors.BadArgError(f"mask: expected shape (3,), got {m.shape}")
+        st = lib.mca_cs3_update(self._cs, *(_fptr(a) for a in arrs), ffi.cast("uint8_t *", ffi.from_buffer(m)),
+                                self._ws, self._rep)
+        check(st, "mca_cs3_update")
+        out = {"m": np.zeros(3, np.int64), "nu": np.full((3, 2), np.nan), "c": np.full((3, 2, 2), np.nan),
+               "t_stat": np.full(3, np.nan)}
+        for i in range(3):
+            r = self._rep[i]
+            k = r.m
+            out["m"][i] = k
+            if k:
+                out["nu"][i, :k] = list(r.nu)[:k]
+                out["c"][i, :k, :k] = np.array(list(r.c)[: k * k]).reshape(k, k)
+                out["t_stat"][i] = r.t_stat
+        return out
+
+    @property
+    def x(self) -> np.ndarray:
+        """States (3 x 5): rows N, E, D; columns p, v, a, eps_p, eps_v."""
+        return np.array([list(self._cs.axis[i].x) for i in range(3)], dtype=np.float32)
+
+    @property
+    def P(self) -> np.ndarray:  # noqa: N802 - the covariance is P in every text
+        """Covariances (3 x 5 x 5)."""
+        return np.array([list(self._cs.axis[i].p) for i in range(3)], dtype=np.float32).reshape(3, 5, 5)
+
+    @property
+    def s2(self) -> np.ndarray:
+        """Maneuver variance used by the last predict, per axis."""
+        return np.array([self._cs.axis[i].s2_m2ps4 for i in range(3)], dtype=np.float32)
+
+
+# ---------------------------------------------------------------- navigation top level
+
+PRESETS = {
+    "ground": lib.mca_nav_config_default,
+    "fixedwing": lib.mca_nav_config_fixedwing,
+    "multirotor": lib.mca_nav_config_multirotor,
+}
+
+FLAG_BITS = {
+    "aligned": lib.MCA_FLAG_ALIGNED, "home_set": lib.MCA_FLAG_HOME_SET, "gps_lost": lib.MCA_FLAG_GPS_LOST,
+    "yaw_unobserved": lib.MCA_FLAG_YAW_UNOBSERVED, "grav_skipped": lib.MCA_FLAG_GRAV_SKIPPED,
+    "saturated": lib.MCA_FLAG_SATURATED, "hist_miss": lib.MCA_FLAG_HIST_MISS,
+}
+
+IMU_C_DTYPE = struct_dtype("mca_imu_sample_t")
+MAG_C_DTYPE = struct_dtype("mca_mag_sample_t")
+GPS_C_DTYPE = struct_dtype("mca_gps_event_t")
+OUT_C_DTYPE = struct_dtype("mca_nav_output_t")
+
+
+def nav_config(preset: str = "ground", **overrides: Any) -> Any:
+    """A ``mca_nav_config_t`` from a preset and overrides (``cs_h={'tau_a_s': 3}`` or ``'cs_h.tau_a_s'``)."""
+    if preset not in PRESETS:
+        raise errors.BadConfigError(f"unknown preset {preset!r}; known: {', '.join(PRESETS)}")
+    cfg = ffi.new("mca_nav_config_t *")
+    PRESETS[preset](cfg)
+    _apply(cfg, overrides, "mca_nav_config_t")
+    check(lib.mca_nav_config_check(cfg), "mca_nav_config_t")
+    return cfg
+
+
+def config_dict(cfg: Any) -> dict[str, Any]:
+    """A configuration struct as a nested dict (for logs and comparison with the golden model)."""
+    return _struct_to_dict(cfg)
+
+
+def gnss_to_c(gnss: np.ndarray) -> np.ndarray:
+    """GNSS_DTYPE fixes to ``mca_gps_event_t`` records."""
+    ev = np.zeros(len(gnss), GPS_C_DTYPE)
+    ev["t_rx_us"] = gnss["t_rx_us"]
+    fix = ev["fix"]
+    fix["t_us"] = gnss["t_us"]
+    fix["lat_e7"] = gnss["lat_e7"]
+    fix["lon_e7"] = gnss["lon_e7"]
+    fix["alt_mm"] = gnss["alt_mm"]
+    fix["vel_ned_mps"] = np.nan_to_num(gnss["vel_ned_mps"], nan=0.0)
+    fix["h_acc_m"] = gnss["h_acc_m"]
+    fix["v_acc_m"] = gnss["v_acc_m"]
+    fix["s_acc_mps"] = gnss["s_acc_mps"]
+    fl = gnss["flags"]
+    fix["flags"] = (np.where(fl & GNSS_HAS_VEL_NE, lib.MCA_FIX_VEL_NE, 0)
+                    | np.where(fl & GNSS_HAS_VEL_D, lib.MCA_FIX_VEL_D, 0)
+                    | np.where(fl & GNSS_HAS_ALT, lib.MCA_FIX_ALT, 0))
+    fix["fix_type"] = gnss["fix_type"]
+    ev["fix"] = fix
+    return ev
+
+
+class Nav:
+    """The navigation top level of the C core, one sample at a time or a whole recording."""
+
+    def __init__(self, cfg: Any = None) -> None:
+        self.cfg = cfg if cfg is not None else nav_config()
+        self._nav = ffi.new("mca_nav_t *")
+        self._out = ffi.new("mca_nav_output_t *")
+        self._fix = ffi.new("mca_gps_fix_t *")
+        self._f3 = [np.zeros(3, np.float32) for _ in range(2)]
+        check(lib.mca_nav_init(self._nav, self.cfg), "mca_nav_init")
+
+    def imu(self, t_us: int, gyro_b_rps: Any, accel_b_mps2: Any) -> None:
+        g = _as_f32(gyro_b_rps, (3,), "gyro_b_rps")
+        a = _as_f32(accel_b_mps2, (3,), "accel_b_mps2")
+        check(lib.mca_nav_imu(self._nav, int(t_us), _fptr(g), _fptr(a)), f"mca_nav_imu(t_us={t_us})")
+
+    def gps(self, t_us: int, lat_e7: int, lon_e7: int, alt_mm: int | None = None,
+            vel_ned_mps: Any = None, h_acc_m: float = float("nan"), v_acc_m: float = float("nan"),
+            s_acc_mps: float = float("nan"), fix_type: int = 3, vel_d: bool = True) -> None:
+        f = self._fix
+        f.t_us, f.lat_e7, f.lon_e7 = int(t_us), int(lat_e7), int(lon_e7)
+        f.alt_mm = 0 if alt_mm is None else int(alt_mm)
+        flags = 0 if alt_mm is None else lib.MCA_FIX_ALT
+        if vel_ned_mps is not None:
+            f.vel_ned_mps = [float(v) for v in vel_ned_mps]
+            flags |= lib.MCA_FIX_VEL_NE | (lib.MCA_FIX_VEL_D if vel_d else 0)
+        f.h_acc_m, f.v_acc_m, f.s_acc_mps = h_acc_m, v_acc_m, s_acc_mps
+        f.flags, f.fix_type = flags, fix_type
+        check(lib.mca_nav_gps(self._nav, f), f"mca_nav_gps(t_us={t_us}, lat_e7={lat_e7}, lon_e7={lon_e7})")
+
+    def mag(self, t_us: int, mag_b: Any) -> None:
+        m = _as_f32(mag_b, (3,), "mag_b")
+        check(lib.mca_nav_mag(self._nav, int(t_us), _fptr(m)), f"mca_nav_mag(t_us={t_us})")
+
+    def output(self) -> dict[str, Any]:
+        lib.mca_nav_output(self._nav, self._out)
+        return _struct_to_dict(self._out[0])
+
+    def replay(self, rec: Recording) -> dict[str, np.ndarray]:
+        """Run a whole recording (ALGORITHMS.md 9) in one C call; one output row per IMU sample."""
+        imu = np.zeros(len(rec.imu), IMU_C_DTYPE)
+        imu["t_us"] = rec.imu["t_us"]
+        imu["gyro_b_rps"] = rec.imu["gyro_rps"]
+        imu["accel_b_mps2"] = rec.imu["accel_mps2"]
+        gps = gnss_to_c(rec.gnss)
+        mag = np.zeros(len(rec.mag), MAG_C_DTYPE)
+        mag["t_us"] = rec.mag["t_us"]
+        mag["mag_b"] = rec.mag["mag_b"]
+        if np.any(np.diff(imu["t_us"].astype(np.int64)) < 0) or np.any(np.diff(gps["t_rx_us"].astype(np.int64)) < 0):
+            raise errors.BadArgError(f"{rec.name}: samples must be sorted by time")
+        out = np.zeros(len(imu), OUT_C_DTYPE)
+        st_i = np.zeros(len(imu), np.uint8)
+        st_g = np.zeros(len(gps), np.uint8)
+        st_m = np.zeros(len(mag), np.uint8)
+
+        def ptr(ctype: str, a: np.ndarray) -> Any:
+            return ffi.cast(ctype, ffi.from_buffer(a)) if len(a) else ffi.NULL
+
+        check(lib.mca_nav_replay(self._nav, ptr("mca_imu_sample_t *", imu), len(imu),
+                                 ptr("mca_gps_event_t *", gps), len(gps), ptr("mca_mag_sample_t *", mag), len(mag),
+                                 ptr("mca_nav_output_t *", out), ptr("uint8_t *", st_i), ptr("uint8_t *", st_g),
+                                 ptr("uint8_t *", st_m)), "mca_nav_replay")
+        res = {name: out[name] for name in OUT_C_DTYPE.names}
+        res.update(imu_status=st_i, gps_status=st_g, mag_status=st_m)
+        return res
+
+
+def replay(rec: Recording, cfg: Any = None) -> dict[str, np.ndarray]:
+    """Run a recording through a fresh C navigation filter."""
+    return Nav(cfg).replay(rec)
