@@ -16,6 +16,7 @@ void mca_att_config_default(mca_att_config_t *cfg)
     cfg->rp_sigma0_rad = 0.03f;
     cfg->rp_k_dev = 1.0f;
     cfg->max_tilt_obs_rad = 80.0f * DEG;
+    mca_robust_config_default(&cfg->robust);
 }
 
 static int nonneg(float v)
@@ -35,7 +36,8 @@ mca_status_t mca_att_config_check(const mca_att_config_t *c)
     }
     if (!nonneg(c->gyro_noise_rps) || !nonneg(c->gyro_bias_rw_rps2) || !pos(c->att0_var_rad2) ||
         !pos(c->yaw0_var_rad2) || !pos(c->bias0_var_rps2) || !pos(c->rp_sigma0_rad) || !nonneg(c->rp_k_dev) ||
-        !pos(c->max_tilt_obs_rad) || c->max_tilt_obs_rad >= 1.5707963f) {
+        !pos(c->max_tilt_obs_rad) || c->max_tilt_obs_rad >= 1.5707963f ||
+        mca_robust_config_check(&c->robust) != MCA_OK) {
         return MCA_ERR_BAD_CONFIG;
     }
     return MCA_OK;
@@ -64,6 +66,7 @@ mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, const flo
     att->p[21] = cfg->bias0_var_rps2;
     att->p[28] = cfg->bias0_var_rps2;
     att->p[35] = cfg->bias0_var_rps2;
+    mca_robust_state_init(&att->rs);
     return MCA_OK;
 }
 
@@ -113,7 +116,8 @@ mca_status_t mca_att_propagate(mca_att_t *att, const float gyro[3], float dt)
             att->p[(j + 3u) * 6u + i] = n12;
         }
     }
-    const float qg = att->cfg.gyro_noise_rps * att->cfg.gyro_noise_rps * dt;
+    /* AKF of the roll/pitch observation scales the process noise (1 in other modes) */
+    const float qg = att->rs.q_scale * att->cfg.gyro_noise_rps * att->cfg.gyro_noise_rps * dt;
     const float qb = att->cfg.gyro_bias_rw_rps2 * att->cfg.gyro_bias_rw_rps2 * dt;
     for (size_t i = 0; i < 3u; ++i) {
         att->p[i * 7u] += qg;
@@ -152,7 +156,7 @@ static void delay_transport(float c_d[9], const float q_d[4], const float q[4])
 
 /* Update of the error state from zero with rows e (m x 3, at q_d), residual nu, diag R. */
 static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, const float *nu, float r,
-                                 const float q_d[4], float *ws, mca_update_report_t *rep)
+                                 const float q_d[4], int robust, float *ws, mca_update_report_t *rep)
 {
     float c_d[9], h[2u * MCA_ATT_NX] = {0}, dx[MCA_ATT_NX] = {0}, rm[4] = {0};
     delay_transport(c_d, q_d, att->q_nb);
@@ -163,7 +167,8 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
         }
         rm[k * m + k] = r;
     }
-    const mca_status_t st = mca_kf_update(dx, att->p, MCA_ATT_NX, h, nu, rm, m, ws, MCA_ATT_WS_LEN, rep);
+    const mca_status_t st = mca_kf_update(dx, att->p, MCA_ATT_NX, h, nu, rm, m, robust ? &att->cfg.robust : NULL,
+                                           robust ? &att->rs : NULL, ws, MCA_ATT_WS_LEN, rep);
     if (st == MCA_OK) {
         correct(att, dx);
     }
@@ -207,7 +212,7 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const floa
     const float e_rows[6] = {1.0f, sp * tt, cp * tt, 0.0f, cp, -sp};
     const float dev = att->cfg.rp_k_dev * fabsf(gn - g) / g;
     const float r = att->cfg.rp_sigma0_rad * att->cfg.rp_sigma0_rad + dev * dev + r_acc;
-    return euler_update(att, e_rows, 2u, nu, r, q_d, ws, rep);
+    return euler_update(att, e_rows, 2u, nu, r, q_d, 1, ws, rep);
 }
 
 mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
@@ -230,7 +235,7 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
     const float ct = cosf(eul[1]);
     const float e_row[3] = {0.0f, sinf(eul[0]) / ct, cosf(eul[0]) / ct};
     const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};
-    return euler_update(att, e_row, 1u, nu, r, q_d, ws, rep);
+    return euler_update(att, e_row, 1u, nu, r, q_d, 0, ws, rep);
 }
 
 mca_status_t mca_att_mag_heading(const mca_att_t *att, const float m[3], float decl, float *psi_m)

@@ -23,6 +23,7 @@ void mca_cs_config_default_h(mca_cs_config_t *cfg)
     cfg->a0_var_m2ps4 = 1.0f;
     cfg->dt_max_s = 10.0f;
     cfg->adaptive = 1u;
+    mca_robust_config_default(&cfg->robust);
 }
 
 void mca_cs_config_default_v(mca_cs_config_t *cfg)
@@ -48,7 +49,8 @@ mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
         !isfinite(cfg->sigma_p_m) || cfg->sigma_p_m < 0.0f || !isfinite(cfg->sigma_v_mps) ||
         cfg->sigma_v_mps < 0.0f || !positive(cfg->sigma_a0_mps2) || !positive(cfg->a_max_mps2) ||
         !positive(cfg->sigma_a_min_mps2) || !positive(cfg->p0_var_m2) || !positive(cfg->v0_var_m2ps2) ||
-        !positive(cfg->a0_var_m2ps4) || !positive(cfg->dt_max_s) || cfg->adaptive > 1u) {
+        !positive(cfg->a0_var_m2ps4) || !positive(cfg->dt_max_s) || cfg->adaptive > 1u ||
+        mca_robust_config_check(&cfg->robust) != MCA_OK) {
         return MCA_ERR_BAD_CONFIG;
     }
     return MCA_OK;
@@ -76,6 +78,7 @@ mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, flo
     ax->p[18] = cfg->sigma_p_m * cfg->sigma_p_m;
     ax->p[24] = cfg->sigma_v_mps * cfg->sigma_v_mps;
     ax->s2_m2ps4 = cfg->sigma_a0_mps2 * cfg->sigma_a0_mps2;
+    mca_robust_state_init(&ax->rs);
     return MCA_OK;
 }
 
@@ -192,8 +195,9 @@ static void axis_predict(mca_cs_axis_t *ax, float t)
     /* covariance: Phi P Phi^T + Q */
     mca_mat_mul(tmp, phi, ax->p, 5u, 5u, 5u);
     mca_mat_mul_bt(ax->p, tmp, phi, 5u, 5u, 5u);
+    const float qs = ax->rs.q_scale; /* AKF (ALGORITHMS.md 5); 1 in the other modes */
     for (size_t i = 0; i < 25u; ++i) {
-        ax->p[i] += q[i];
+        ax->p[i] += qs * q[i];
     }
     mca_mat_symmetrize(ax->p, 5u);
     ax->s2_m2ps4 = s2;
@@ -257,7 +261,7 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
     } else {
         r[0] = (mask & MCA_CS_POS) != 0u ? r_p : r_v;
     }
-    return mca_kf_update(ax->x, ax->p, MCA_CS_NX, h, z, r, m, ws, MCA_CS_WS_LEN, rep);
+    return mca_kf_update(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs, ws, MCA_CS_WS_LEN, rep);
 }
 
 mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,

@@ -3,10 +3,46 @@
 
 #include <string.h>
 
+void mca_robust_config_default(mca_robust_config_t *cfg)
+{
+    memset(cfg, 0, sizeof(*cfg));
+    cfg->mode = (uint8_t)MCA_ROBUST_PLAIN;
+    cfg->fuzzy_reject = 1u;
+    cfg->akf_window = MCA_AKF_WINDOW;
+    cfg->akf_forget = 0.2f;
+    cfg->akf_q_min = 0.5f;
+    cfg->akf_q_max = 10.0f;
+    cfg->igg_k0 = 1.5f;
+    cfg->igg_k1 = 3.0f;
+}
+
+mca_status_t mca_robust_config_check(const mca_robust_config_t *c)
+{
+    if (c == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (c->mode > (uint8_t)MCA_ROBUST_IGG3 || c->fuzzy_reject > 1u || c->akf_window < 1u ||
+        c->akf_window > MCA_AKF_WINDOW || !(c->akf_forget > 0.0f && c->akf_forget <= 1.0f) ||
+        !(c->akf_q_min > 0.0f) || !(c->akf_q_max >= c->akf_q_min) || !(c->igg_k0 > 0.0f) ||
+        !(c->igg_k1 > c->igg_k0) || !mca_finite(c->akf_q_max) || !mca_finite(c->igg_k1)) {
+        return MCA_ERR_BAD_CONFIG;
+    }
+    return MCA_OK;
+}
+
+void mca_robust_state_init(mca_robust_state_t *st)
+{
+    memset(st, 0, sizeof(*st));
+    st->q_scale = 1.0f;
+}
+
 mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const float *z,
-                           const float *r, size_t m, float *ws, size_t ws_len,
+                           const float *r, size_t m, const mca_robust_config_t *rc,
+                           mca_robust_state_t *rs, float *ws, size_t ws_len,
                            mca_update_report_t *rep)
 {
+    (void)rc; /* modes other than plain: robust-layer work, ALGORITHMS.md 5 */
+    (void)rs;
     if (x == NULL || p == NULL || h == NULL || z == NULL || r == NULL || ws == NULL) {
         return MCA_ERR_NULL;
     }
@@ -43,6 +79,10 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
         rep->m = (uint8_t)m;
         rep->mode = (uint8_t)MCA_ROBUST_PLAIN;
         rep->factor = 1.0f;
+        rep->q_scale = 1.0f;
+        for (size_t i = 0; i < m; ++i) {
+            rep->w[i] = 1.0f;
+        }
         memcpy(rep->nu, y, m * sizeof(float));
         memcpy(rep->c, c, m * m * sizeof(float));
     }

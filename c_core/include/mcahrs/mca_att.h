@@ -22,12 +22,14 @@ typedef struct {
     float rp_sigma0_rad;     /**< base std of the roll/pitch observation, > 0 */
     float rp_k_dev;          /**< std per unit of | |g_b| - g | / g, >= 0 */
     float max_tilt_obs_rad;  /**< no roll/pitch or yaw observation beyond this pitch, (0, pi/2) */
+    mca_robust_config_t robust; /**< robust/adaptive mode of the roll/pitch observation */
 } mca_att_config_t;
 
 typedef struct {
     float q_nb[4];                     /**< body FRD to NED, [w, x, y, z] */
     float bias_rps[3];                 /**< gyro bias estimate */
     float p[MCA_ATT_NX * MCA_ATT_NX];  /**< error-state covariance [dtheta, db] */
+    mca_robust_state_t rs;             /**< robust memory of the roll/pitch observation */
     mca_att_config_t cfg;
 } mca_att_t;
 

@@ -39,6 +39,7 @@ typedef struct {
     float a0_var_m2ps4;     /**< initial acceleration variance, > 0 */
     float dt_max_s;         /**< longest accepted predict step, > 0 */
     uint8_t adaptive;       /**< 0 fixed sigma_a0, 1 current-statistical adaptive */
+    mca_robust_config_t robust; /**< robust/adaptive mode of the GPS updates */
 } mca_cs_config_t;
 
 /** One axis. Owns its state; scratch is passed in by the caller (see mca_cs3_t). */
@@ -46,6 +47,7 @@ typedef struct {
     float x[MCA_CS_NX];             /**< [p, v, a, eps_p, eps_v] */
     float p[MCA_CS_NX * MCA_CS_NX]; /**< covariance, row-major, symmetric */
     float s2_m2ps4;                 /**< maneuver variance used by the last predict */
+    mca_robust_state_t rs;          /**< robust-mode memory; rs.q_scale scales Q at predict */
     mca_cs_config_t cfg;
 } mca_cs_axis_t;
 
