@@ -52,8 +52,11 @@ uint32_t rio_stack_used(void);
  */
 uint64_t rio_sync(void);
 
-/** Instructions between two rio_sync() stamps, less the calibrated overhead `overhead`. */
-uint32_t rio_instructions(uint64_t t0, uint64_t t1, uint32_t overhead);
+/**
+ * Instructions between two rio_sync() stamps, less `overhead` (calibrated on an empty call;
+ * it may be negative, the stamps' own constant being so). Never below 0.
+ */
+uint32_t rio_instructions(uint64_t t0, uint64_t t1, int32_t overhead);
 
 /** SysTick's current value (counts down, 24 bits), read plainly; 0 on the host. */
 uint32_t rio_ticks(void);

@@ -73,7 +73,7 @@ uint64_t rio_sync(void)
     return 0u;
 }
 
-uint32_t rio_instructions(uint64_t t0, uint64_t t1, uint32_t overhead)
+uint32_t rio_instructions(uint64_t t0, uint64_t t1, int32_t overhead)
 {
     (void)t0;
     (void)t1;

@@ -144,13 +144,14 @@ uint32_t rio_ticks(void)
     return SYST_CVR & 0x00FFFFFFu;
 }
 
-uint32_t rio_instructions(uint64_t t0, uint64_t t1, uint32_t overhead)
+uint32_t rio_instructions(uint64_t t0, uint64_t t1, int32_t overhead)
 {
-    /* Both stamps sit on a tick's first instruction: their distance is whole ticks. */
-    const uint32_t ticks = ((uint32_t)t0 - (uint32_t)t1) & 0x00FFFFFFu;
-    const uint32_t iters = (uint32_t)(t1 >> 32);
-    const uint32_t raw = ticks * INSTR_PER_TICK - VERNIER_LOOP * iters;
-    return raw > overhead ? raw - overhead : 0u;
+    /* Both stamps sit on a tick's first instruction: their distance is whole ticks; the
+     * second stamp's own loop iterations are not the call's. */
+    const int64_t ticks = (int64_t)(((uint32_t)t0 - (uint32_t)t1) & 0x00FFFFFFu);
+    const int64_t iters = (int64_t)(t1 >> 32);
+    const int64_t n = ticks * INSTR_PER_TICK - (int64_t)VERNIER_LOOP * iters - overhead;
+    return n > 0 ? (uint32_t)n : 0u;
 }
 
 void fw_exit(int code)

@@ -31,7 +31,8 @@
 
 /* CS maneuver filter (mca_cs.h). Output of every CS op: i32 status, f32 x[3][5],
  * f32 P diagonal[3][5]; CS3_UPDATE adds f32 T[3] (report t_stat, 0 for a skipped axis). */
-/* in: cfg_h, cfg_v (each 12 f32 in mca_cs_config_t order + u32 adaptive), f32 pos[3],
+/* in: cfg_h, cfg_v (each: the 12 f32 fields in mca_cs_config_t order, u32 adaptive,
+ *     u32 robust mode; other fields from mca_cs_config_default_h/_v), f32 pos[3],
  *     f32 vel[3], u32 flags (bit 0: pos given, bit 1: vel given; else NULL is passed) */
 #define RPL_OP_CS3_INIT 0x0101u
 /* in: f32 dt_s */
@@ -39,7 +40,21 @@
 /* in: f32 pos[3], vel[3], r_pos[3], r_vel[3], u32 mask[3] */
 #define RPL_OP_CS3_UPDATE 0x0103u
 
-/* Attitude/navigation top level (mca_nav.h): 0x02xx, added when mca_nav.h exists. */
+/* Navigation top level (mca_nav.h). Output: i32 status (NAV_OUTPUT: i32 0, then the output). */
+/* in: u32 preset (0 default, 1 fixed-wing, 2 multirotor, else a NULL config), u32 comp_mode,
+ *     u32 yaw_source, u32 CS robust mode, u32 attitude robust mode (0xFFFFFFFF: the preset's) */
+#define RPL_OP_NAV_INIT_PRESET 0x0201u
+/* in: u64 t_us, f32 gyro_b_rps[3], f32 accel_b_mps2[3] */
+#define RPL_OP_NAV_IMU 0x0202u
+/* in: u64 t_us, i32 lat_e7, i32 lon_e7, i32 alt_mm, f32 vel_ned_mps[3], f32 h_acc_m, v_acc_m,
+ *     s_acc_mps, u32 flags (MCA_FIX_*), u32 fix_type */
+#define RPL_OP_NAV_GPS 0x0203u
+/* in: u64 t_us, f32 mag_b[3] */
+#define RPL_OP_NAV_MAG 0x0204u
+/* in: nothing. out: i32 0, u64 t_us, f32 q_nb[4], euler_rad[3], gyro_bias_rps[3], pos_ned_m[3],
+ *     vel_ned_mps[3], acc_ned_mps2[3], att_var[6], cs_var[9], rp_t, gps_t[3],
+ *     u32 flags, u32 n_grav_obs, u32 n_grav_skip */
+#define RPL_OP_NAV_OUTPUT 0x0205u
 
 /* Measurement self-test (no core call; output: i32 status 0). in: u32 n.
  * Runs a known loop of exactly 2n + 1 instructions (fw_spin) and records its measured cost. */
@@ -50,6 +65,11 @@
 #define RPL_EP_CS3_INIT 1u
 #define RPL_EP_CS3_PREDICT 2u
 #define RPL_EP_CS3_UPDATE 3u
+#define RPL_EP_NAV_INIT 4u
+#define RPL_EP_NAV_IMU 5u
+#define RPL_EP_NAV_GPS 6u
+#define RPL_EP_NAV_MAG 7u
+#define RPL_EP_NAV_OUTPUT 8u
 #define RPL_EP_CAL_SPIN 15u
 
 /* ---- Cost file: 16-byte records u16 kind, u16 id, u32 a, u32 b, u32 c. ---- */
@@ -65,6 +85,7 @@
 #define RPL_META_STACK_BYTES 3u   /* size of the stack region painted */
 #define RPL_META_SIZEOF_CS3 4u    /* sizeof(mca_cs3_t): the CS filter's whole state */
 #define RPL_META_INSTR_PER_TICK 5u /* instructions per SysTick tick the method assumes */
+#define RPL_META_SIZEOF_NAV 6u    /* sizeof(mca_nav_t): the navigation filter's whole state */
 
 /* Status of an op the replay itself rejects (never a core status, those are >= 0). */
 #define RPL_STATUS_FORMAT (-1)

@@ -15,14 +15,14 @@ void mca_cs_config_default_h(mca_cs_config_t *cfg)
     cfg->tau_v_s = 5.0f;
     cfg->sigma_p_m = 1.5f;
     cfg->sigma_v_mps = 0.05f;
-    cfg->sigma_a0_mps2 = 1.0f;
+    cfg->sigma_a0_mps2 = 0.5f;
     cfg->a_max_mps2 = 6.0f;
     cfg->sigma_a_min_mps2 = 0.05f;
     cfg->p0_var_m2 = 25.0f;
     cfg->v0_var_m2ps2 = 1.0f;
     cfg->a0_var_m2ps4 = 1.0f;
     cfg->dt_max_s = 10.0f;
-    cfg->adaptive = 1u;
+    cfg->adaptive = 0u; /* docs/ALGORITHMS.md 2, note on the default */
     mca_robust_config_default(&cfg->robust);
 }
 
@@ -31,7 +31,7 @@ void mca_cs_config_default_v(mca_cs_config_t *cfg)
     mca_cs_config_default_h(cfg);
     cfg->sigma_p_m = 3.0f;
     cfg->sigma_v_mps = 0.08f;
-    cfg->sigma_a0_mps2 = 0.5f;
+    cfg->sigma_a0_mps2 = 0.3f;
     cfg->a_max_mps2 = 3.0f;
 }
 

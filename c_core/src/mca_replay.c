@@ -1,6 +1,9 @@
 /* Batch replay in the event order of docs/ALGORITHMS.md 9. See mca_replay.h. */
 #include "mcahrs/mca_replay.h"
 
+#include <math.h>
+#include <string.h>
+
 mca_status_t mca_nav_replay(mca_nav_t *nav, const mca_imu_sample_t *imu, size_t n_imu, const mca_gps_event_t *gps,
                             size_t n_gps, const mca_mag_sample_t *mag, size_t n_mag, mca_nav_output_t *out,
                             uint8_t *imu_status, uint8_t *gps_status, uint8_t *mag_status)
@@ -34,6 +37,43 @@ mca_status_t mca_nav_replay(mca_nav_t *nav, const mca_imu_sample_t *imu, size_t 
                 mag_status[k] = (uint8_t)st;
             }
             ++k;
+        }
+    }
+    return MCA_OK;
+}
+
+mca_status_t mca_cs3_run(mca_cs3_t *cs, size_t n, const float *dt_s, const float *pos, const float *vel,
+                         const float *r_pos, const float *r_vel, const uint8_t *mask, float *ws, float *x_out,
+                         float *p_out, float *t_out, uint8_t *status)
+{
+    if (cs == NULL || ws == NULL || (n > 0u && (dt_s == NULL || pos == NULL || vel == NULL || r_pos == NULL ||
+                                                r_vel == NULL || mask == NULL))) {
+        return MCA_ERR_NULL;
+    }
+    for (size_t k = 0; k < n; ++k) {
+        mca_status_t st = mca_cs3_predict(cs, dt_s[k]);
+        mca_update_report_t rep[3];
+        const uint8_t *mk = &mask[3u * k];
+        int updated = 0;
+        if ((mk[0] | mk[1] | mk[2]) != 0u) {
+            const mca_status_t su = mca_cs3_update(cs, &pos[3u * k], &vel[3u * k], &r_pos[3u * k], &r_vel[3u * k],
+                                                   mk, ws, rep);
+            st = st != MCA_OK ? st : su;
+            updated = su == MCA_OK;
+        }
+        if (status != NULL) {
+            status[k] = (uint8_t)st;
+        }
+        for (size_t i = 0; i < 3u; ++i) {
+            if (x_out != NULL) {
+                memcpy(&x_out[15u * k + 5u * i], cs->axis[i].x, 5u * sizeof(float));
+            }
+            if (p_out != NULL) {
+                memcpy(&p_out[75u * k + 25u * i], cs->axis[i].p, 25u * sizeof(float));
+            }
+            if (t_out != NULL) {
+                t_out[3u * k + i] = (updated && mk[i] != 0u) ? rep[i].t_stat : NAN;
+            }
         }
     }
     return MCA_OK;

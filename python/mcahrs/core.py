@@ -181,6 +181,34 @@ class Cs3:
                 out["t_stat"][i] = r.t_stat
         return out
 
+    def run(self, dt_s: Any, pos_ned_m: Any, vel_ned_mps: Any, r_pos_m2: Any, r_vel_m2ps2: Any,
+            mask: Any, want_p: bool = True) -> dict[str, np.ndarray]:
+        """Many predict(+update) steps in one C call (``mca_cs3_run``).
+
+        ``dt_s`` (n,); the others (n, 3); ``mask`` 0 on every axis means predict only.
+        Returns ``x`` (n, 3, 5), ``P`` (n, 3, 5, 5) when ``want_p``, ``T`` (n, 3, NaN where not
+        updated) and ``status`` (n,) per step; statuses are not raised.
+        """
+        dt = np.ascontiguousarray(dt_s, np.float32).reshape(-1)
+        n = len(dt)
+        arrs = [_as_f32(a, (n, 3), name) for a, name in ((pos_ned_m, "pos_ned_m"), (vel_ned_mps, "vel_ned_mps"),
+                                                          (r_pos_m2, "r_pos_m2"), (r_vel_m2ps2, "r_vel_m2ps2"))]
+        m = np.ascontiguousarray(mask, np.uint8)
+        if m.shape != (n, 3):
+            raise errors.BadArgError(f"mask: expected shape {(n, 3)}, got {m.shape}")
+        x = np.zeros((n, 3, 5), np.float32)
+        p = np.zeros((n, 3, 5, 5), np.float32) if want_p else None
+        t = np.zeros((n, 3), np.float32)
+        st = np.zeros(n, np.uint8)
+        check(lib.mca_cs3_run(self._cs, n, _fptr(dt), *(_fptr(a) for a in arrs),
+                              ffi.cast("uint8_t *", ffi.from_buffer(m)), self._ws, _fptr(x),
+                              _fptr(p) if p is not None else ffi.NULL, _fptr(t),
+                              ffi.cast("uint8_t *", ffi.from_buffer(st))), "mca_cs3_run")
+        out = {"x": x, "T": t, "status": st}
+        if p is not None:
+            out["P"] = p
+        return out
+
     @property
     def x(self) -> np.ndarray:
         """States (3 x 5): rows N, E, D; columns p, v, a, eps_p, eps_v."""

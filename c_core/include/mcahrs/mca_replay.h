@@ -39,4 +39,18 @@ mca_status_t mca_nav_replay(mca_nav_t *nav, const mca_imu_sample_t *imu, size_t 
                             size_t n_mag, mca_nav_output_t *out, uint8_t *imu_status,
                             uint8_t *gps_status, uint8_t *mag_status);
 
+/**
+ * Run a CS filter over n steps in one call: step k predicts over dt_s[k] and then, for the
+ * axes whose mask_k[i] is set, updates with pos_ned_m[k], vel_ned_mps[k] and the variances.
+ * Arrays of 3-vectors are n x 3 row-major. Outputs (each may be NULL): x_out (n x 15, the
+ * three axes' states after the step), p_out (n x 75, their covariances), t_out (n x 3, the
+ * update T, NaN where not updated), status (n, the first non-OK status of the step).
+ * @param[out] ws MCA_CS_WS_LEN floats of scratch
+ * @return MCA_ERR_NULL, else MCA_OK (per-step statuses in status).
+ */
+mca_status_t mca_cs3_run(mca_cs3_t *cs, size_t n, const float *dt_s, const float *pos_ned_m,
+                         const float *vel_ned_mps, const float *r_pos_m2, const float *r_vel_m2ps2,
+                         const uint8_t *mask, float *ws, float *x_out, float *p_out, float *t_out,
+                         uint8_t *status);
+
 #endif /* MCA_REPLAY_H */

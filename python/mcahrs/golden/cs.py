@@ -8,7 +8,7 @@ transition ``Phi`` and the exact Singer process noise ``Q``.
 Small ``x = alpha T``
 ---------------------
 ``Phi13``, ``Phi23`` and the Singer block ``q11..q33`` written as in DESIGN.md 3 cancel
-catastrophically when ``x = alpha T`` is small, in float64 too (measured against 60-digit
+catastrophically when ``x = alpha T`` is small, in float64 too (measured against 50-digit
 mpmath: the exact-form ``q11`` is wrong by 6e-11 relative at x = 0.1 and by 1e-2 at
 x = 1e-3). Below ``SERIES_THRESHOLD`` every one of them is evaluated as a Taylor series in
 ``x`` instead; at and above it, the D3 formulas are used (with ``expm1`` for ``1 - e`` and
@@ -26,17 +26,21 @@ The coefficients are built in exact integer arithmetic at import (N = 0 gives th
 small-alpha T matrix: 1/20, 1/8, 1/6, 1/3, 1/2, 1). Likewise
 ``Phi13 = T^2 sum_n (-x)^n/(n+2)!``; ``Phi23 = -T expm1(-x)/x`` needs no series.
 
-Threshold and term count: ``SERIES_THRESHOLD = 1.0``, ``SERIES_TERMS = 24``.
-* Above the threshold the exact forms lose about eps * (largest term)/(result); the worst
-  entry, q11, is off by at most ~5e-15 relative at x = 1 (1.6e-15 at 1.5, 3e-16 at 2).
-* Below it, the series is alternating; rounding in Horner's rule costs at most
-  ``g(-x)/g(x) <= e^(2x)`` ulps, about 7 eps at x = 1 (measured <= 2.5e-16), and the first
-  omitted term at x = 1 is <= 2^24/(24! 25) ~ 1.1e-18 absolute, < 3e-18 relative (the slowest
-  series is q33's; 22 terms would leave 4e-16).
-* Moving the threshold up makes the series' rounding grow like e^(2 x0) and needs more terms
-  (36 at x0 = 2); moving it down makes the exact q11 lose digits like x0^-5. x0 = 1 balances
-  the two: every entry is within ~5e-15 relative of the true value for x in [1e-7, 50], and
-  the two branches agree to that across the switch.
+Threshold and term count: ``SERIES_THRESHOLD = 2.0``, ``SERIES_TERMS = 32`` (measured
+against 50-digit mpmath; x = alpha T):
+
+* At and above the threshold the exact forms lose about eps * (largest term) / (result).
+  The worst entry, q11, is within 3.7e-16 relative for x >= 2, but 1.6e-15 at x = 1.5,
+  5e-15 at 1 and 4e-14 at 0.5, growing like x^-5 (q11 ~ x^5 / 10 is left after the O(1)
+  terms cancel).
+* Below it the series alternate in sign, so Horner's rule loses at most
+  g(-x)/g(x) <= e^(2x) ulps (<= 55 at x = 2; measured <= 1.8e-15, about 8 ulps). The
+  slowest series is q33's, (2x)^N / (N! (N + 1)); with 32 terms the first omitted one at
+  x = 2 is 4^32 / (32! 33) ~ 2e-18 absolute, ~1e-17 relative (30 terms would leave ~6e-16).
+* Result: every entry within 1.8e-15 relative of the true value for x in [1e-7, 50]; the
+  two branches differ by 9e-16 relative at the switch. A lower threshold trades series
+  rounding for exact-form cancellation, which grows faster (x0 = 1, 24 terms: worst
+  6.8e-15; x0 = 0.75: 2.4e-14); a higher one needs more terms and rounds worse like e^(2 x0).
 """
 
 from __future__ import annotations
@@ -74,8 +78,8 @@ __all__ = [
     "singer_q",
 ]
 
-SERIES_THRESHOLD = 1.0  # alpha T below this: Taylor series (see module docstring)
-SERIES_TERMS = 24  # terms kept in every series below the threshold
+SERIES_THRESHOLD = 2.0  # alpha T below this: Taylor series (see module docstring)
+SERIES_TERMS = 32  # terms kept in every series below the threshold
 
 MASK_POS = 0x1  # update mask bit 0: position measured
 MASK_VEL = 0x2  # update mask bit 1: velocity measured
@@ -102,7 +106,10 @@ def _singer_coefficient(i: int, j: int, n: int) -> Fraction:
 
 # _SINGER_SERIES[i, j, n]: coefficient of (-x)^n of g_(i+1)(j+1).
 _SINGER_SERIES = np.array(
-    [[[float(_singer_coefficient(i, j, n)) for n in range(SERIES_TERMS)] for j in (1, 2, 3)] for i in (1, 2, 3)]
+    [
+        [[float(_singer_coefficient(i, j, n)) for n in range(SERIES_TERMS)] for j in (1, 2, 3)]
+        for i in (1, 2, 3)
+    ]
 )
 # Coefficients of (-x)^n in (x - 1 + e^-x)/x^2 = Phi13 / T^2.
 _PHI13_SERIES = np.array([1.0 / math.factorial(n + 2) for n in range(SERIES_TERMS)])
@@ -114,8 +121,8 @@ def _alternating_series(coefficients: np.ndarray, x: float) -> np.ndarray:
     """sum_n coefficients[..., n] (-x)^n by Horner's rule (vectorised over leading axes)."""
     y = -x
     acc = np.zeros(coefficients.shape[:-1])
-    for c in coefficients[..., ::-1].T:  # highest power first
-        acc = acc * y + c.T
+    for c in np.moveaxis(coefficients, -1, 0)[::-1]:  # highest power first
+        acc = acc * y + c
     return acc
 
 
@@ -180,12 +187,12 @@ def cs_mean_transition(beta: float, gamma: float, T: float) -> np.ndarray:
 
 
 def _singer_g_series(x: float) -> np.ndarray:
-    """g_ij(x) (module docstring) by the Taylor series; accurate for 0 <= x <= ~1."""
+    """g_ij(x) (module docstring) by the Taylor series; used for 0 <= x < SERIES_THRESHOLD."""
     return _alternating_series(_SINGER_SERIES, x)
 
 
 def _singer_g_exact(x: float) -> np.ndarray:
-    """g_ij(x) = D3 bracket_ij / (2 x^(7-i-j)); accurate for x >= ~1."""
+    """g_ij(x) = D3 bracket_ij / (2 x^(7-i-j)); used for x >= SERIES_THRESHOLD."""
     e = math.exp(-x)
     em = -math.expm1(-x)  # 1 - e
     em2 = -math.expm1(-2.0 * x)  # 1 - e^2
@@ -197,7 +204,7 @@ def _singer_g_exact(x: float) -> np.ndarray:
     b23 = em * em
     b33 = em2
     brackets = np.array([[b11, b12, b13], [b12, b22, b23], [b13, b23, b33]])
-    return brackets / (2.0 * x ** _SINGER_T_POWER)
+    return brackets / (2.0 * x**_SINGER_T_POWER)
 
 
 def singer_q(alpha: float, T: float, s2: float) -> np.ndarray:
@@ -205,7 +212,7 @@ def singer_q(alpha: float, T: float, s2: float) -> np.ndarray:
 
     q = 2 alpha s2 is the white-noise density of w_a. Below ``SERIES_THRESHOLD`` in
     alpha T the entries come from their Taylor series, above it from the D3 formulas;
-    either way accurate to ~5e-15 relative for alpha T in [1e-7, 50] (module docstring).
+    either way accurate to ~2e-15 relative for alpha T in [1e-7, 50] (module docstring).
     """
     alpha, T = _check_rate_and_step(alpha, T)
     s2 = float(s2)
@@ -229,8 +236,8 @@ def cs_process_noise(
     """
     Q = np.zeros((N_STATE, N_STATE))
     Q[:3, :3] = singer_q(alpha, T, s2)
-    Q[3, 3] = -float(sigma_p) ** 2 * math.expm1(-2.0 * float(beta) * float(T))
-    Q[4, 4] = -float(sigma_v) ** 2 * math.expm1(-2.0 * float(gamma) * float(T))
+    Q[3, 3] = -(float(sigma_p) ** 2) * math.expm1(-2.0 * float(beta) * float(T))
+    Q[4, 4] = -(float(sigma_v) ** 2) * math.expm1(-2.0 * float(gamma) * float(T))
     return Q
 
 
@@ -266,10 +273,10 @@ class CsAxisConfig:
     tau_v_s: float = 5.0  # GPS velocity error correlation time, gamma = 1/tau_v
     sigma_p_m: float = 1.5  # GPS position Gauss-Markov error std
     sigma_v_mps: float = 0.05  # GPS velocity Gauss-Markov error std
-    sigma_a0_mps2: float = 1.0  # fixed maneuver std (and adaptive when abar == 0)
+    sigma_a0_mps2: float = 0.5  # fixed maneuver std (and adaptive when abar == 0)
     a_max_mps2: float = 6.0  # maximum maneuver acceleration (adaptive)
     sigma_a_min_mps2: float = 0.05  # floor of the maneuver std (adaptive)
-    adaptive: bool = True  # False: fixed sigma_a0; True: current-statistical adaptive
+    adaptive: bool = False  # False: fixed sigma_a0; True: current-statistical adaptive
     p0_var_m2: float = 25.0  # initial variance of p
     v0_var_m2s2: float = 1.0  # initial variance of v
     a0_var_m2s4: float = 1.0  # initial variance of a
@@ -283,7 +290,7 @@ class CsAxisConfig:
     @classmethod
     def vertical(cls) -> CsAxisConfig:
         """Defaults of the D axis."""
-        return replace(cls(), sigma_p_m=3.0, sigma_v_mps=0.08, sigma_a0_mps2=0.5, a_max_mps2=3.0)
+        return replace(cls(), sigma_p_m=3.0, sigma_v_mps=0.08, sigma_a0_mps2=0.3, a_max_mps2=3.0)
 
     @property
     def alpha(self) -> float:
@@ -465,8 +472,10 @@ class Cs3:
 
     def init(self, p0: object = (0.0, 0.0, 0.0), v0: object = (0.0, 0.0, 0.0)) -> None:
         """Initialise the three axes with position p0 (3,) and velocity v0 (3,), NED."""
-        new = [ax._initial(p, v) for ax, p, v in zip(self.axes, _three("p0", p0), _three("v0", v0))]
-        for ax, (x, P, s2) in zip(self.axes, new):
+        new = [
+            ax._initial(p, v) for ax, p, v in zip(self.axes, _three("p0", p0), _three("v0", v0), strict=True)
+        ]
+        for ax, (x, P, s2) in zip(self.axes, new, strict=True):
             ax.x, ax.P, ax.s2 = x, P, s2
             ax.initialised = True
 
@@ -477,11 +486,9 @@ class Cs3:
         """
         for ax in self.axes:
             ax._require_init()
-        t = T
-        for ax in self.axes:
-            t = _check_dt(T, ax.cfg.dt_max_s)
+        t = _check_dt(T, min(ax.cfg.dt_max_s for ax in self.axes))
         new = [ax._predicted(t) for ax in self.axes]
-        for ax, (x, P, s2) in zip(self.axes, new):
+        for ax, (x, P, s2) in zip(self.axes, new, strict=True):
             ax.x, ax.P, ax.s2 = x, P, s2
         return np.array([s2 for (_, _, s2) in new])
 
@@ -500,14 +507,13 @@ class Cs3:
         if not any(masks):
             raise BadMaskError("mask is 0 on all three axes")
         zp, zv, rp, rv = _three("z_p", z_p), _three("z_v", z_v), _three("r_p", r_p), _three("r_v", r_v)
-        rows = [
-            _measurement_rows(m, zp[i], zv[i], rp[i], rv[i]) if m else None for i, m in enumerate(masks)
-        ]
+        rows = [_measurement_rows(m, zp[i], zv[i], rp[i], rv[i]) if m else None for i, m in enumerate(masks)]
         new = [
-            kf_update(ax.x, ax.P, *row) if row is not None else None for ax, row in zip(self.axes, rows)
+            kf_update(ax.x, ax.P, *row) if row is not None else None
+            for ax, row in zip(self.axes, rows, strict=True)
         ]
         reports: list[UpdateReport | None] = []
-        for ax, result in zip(self.axes, new):
+        for ax, result in zip(self.axes, new, strict=True):
             if result is None:
                 reports.append(None)
                 continue

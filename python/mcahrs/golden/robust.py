@@ -1,7 +1,8 @@
 """Measurement update shared by every filter: ALGORITHMS.md section 1 (plain mode).
 
-Float64 golden model. Pure functions: inputs are never modified, so on any error the
-caller's state is exactly what it was.
+Float64 golden model, NumPy only (scipy is a test dependency, not a runtime one). Pure
+functions: inputs are never modified, so on any error the caller's state is exactly what
+it was.
 """
 
 from __future__ import annotations
@@ -9,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from mcahrs.errors import BadArgError, NonFiniteError, SingularError
 
@@ -46,6 +46,22 @@ def _check_symmetric(name: str, a: np.ndarray) -> None:
     scale = float(np.max(np.abs(a))) if a.size else 0.0
     if float(np.max(np.abs(a - a.T), initial=0.0)) > _SYMMETRY_RTOL * scale:
         raise BadArgError(f"{name} is not symmetric")
+
+
+def _forward_substitution(L: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve L y = b, L lower triangular (b may have several columns)."""
+    y = np.array(b, dtype=np.float64)
+    for i in range(L.shape[0]):
+        y[i] = (y[i] - L[i, :i] @ y[:i]) / L[i, i]
+    return y
+
+
+def _back_substitution(U: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve U y = b, U upper triangular (b may have several columns)."""
+    y = np.array(b, dtype=np.float64)
+    for i in reversed(range(U.shape[0])):
+        y[i] = (y[i] - U[i, i + 1 :] @ y[i + 1 :]) / U[i, i]
+    return y
 
 
 def kf_update(
@@ -94,18 +110,18 @@ def kf_update(
 
     # Step 2: C symmetric positive definite <=> its Cholesky factor exists.
     try:
-        L = scipy.linalg.cholesky(C, lower=True, check_finite=False)
+        L = np.linalg.cholesky(C)  # C = L L^T, reads the lower triangle
     except np.linalg.LinAlgError as exc:
         raise SingularError("innovation covariance is not positive definite") from exc
     if not np.all(np.diag(L) > 0.0):  # LAPACK accepts an exact-zero pivot on some builds
         raise SingularError("innovation covariance is not positive definite")
 
     # Step 3: T = nu^T C^-1 nu = |L^-1 nu|^2.
-    y = scipy.linalg.solve_triangular(L, nu, lower=True, check_finite=False)
+    y = _forward_substitution(L, nu)
     T = float(y @ y)
 
-    # Step 4: K = P H^T C^-1, i.e. K^T = C^-1 (H P) (C and P symmetric).
-    K = scipy.linalg.cho_solve((L, True), H @ P, check_finite=False).T
+    # Step 4: K = P H^T C^-1, i.e. K^T = C^-1 (H P) = L^-T L^-1 (H P) (C and P symmetric).
+    K = _back_substitution(L.T, _forward_substitution(L, H @ P)).T
     x_plus = x + K @ nu
 
     # Step 5: Joseph form, then symmetrise.
