@@ -34,14 +34,15 @@ typedef struct {
 
 /** Memory a stateful mode keeps between updates of one filter (fixed size). */
 typedef struct {
-    float win[MCA_AKF_WINDOW];     /**< AKF: recent innovation energies */
-    float r_est[MCA_MEAS_MAX];     /**< AKF: recursive innovation-variance estimate per row */
+    float win[MCA_AKF_WINDOW];     /**< AKF: last values of nu^T nu - tr(R) */
+    float nu_mean[MCA_MEAS_MAX];   /**< AKF: running innovation mean per row */
+    float nu_var[MCA_MEAS_MAX];    /**< AKF: running innovation variance per row */
     float q_scale;                 /**< factor the owner applies to its Q at the next predict */
     float d_k;                     /**< fuzzy: exponentially weighted membership D_k */
     uint8_t win_n;                 /**< AKF: entries in win */
     uint8_t win_head;              /**< AKF: next slot */
     uint8_t alarm;                 /**< fuzzy: alarm raised */
-    uint8_t pad_;
+    uint8_t started;               /**< AKF: row statistics initialised */
 } mca_robust_state_t;
 
 /** What one update did. Sizes fixed; only the first m entries are meaningful. */
