@@ -43,6 +43,9 @@ uint32_t rio_instr_per_tick(void);
  */
 void rio_stack_paint(void);
 
+/** Size of the painted stack region in bytes (0 on the host). */
+uint32_t rio_stack_bytes(void);
+
 /** Bytes of stack below the stack pointer of the last rio_stack_paint() that were written. */
 uint32_t rio_stack_used(void);
 

@@ -63,6 +63,11 @@ void rio_stack_paint(void)
 {
 }
 
+uint32_t rio_stack_bytes(void)
+{
+    return 0u;
+}
+
 uint32_t rio_stack_used(void)
 {
     return 0u;

@@ -139,6 +139,13 @@ uint32_t rio_instr_per_tick(void)
     return INSTR_PER_TICK;
 }
 
+extern uint32_t __stack_limit[], __stack_top[]; /* mps2_an386.ld */
+
+uint32_t rio_stack_bytes(void)
+{
+    return (uint32_t)((uintptr_t)__stack_top - (uintptr_t)__stack_limit);
+}
+
 uint32_t rio_ticks(void)
 {
     return SYST_CVR & 0x00FFFFFFu;

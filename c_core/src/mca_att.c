@@ -238,6 +238,29 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
     return euler_update(att, e_row, 1u, nu, r, q_d, 0, ws, rep);
 }
 
+mca_status_t mca_att_align_yaw(mca_att_t *att, float psi_m, float r)
+{
+    if (att == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!isfinite(psi_m) || !isfinite(r)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (!(r > 0.0f)) {
+        return MCA_ERR_BAD_ARG;
+    }
+    float eul[3];
+    mca_quat_to_euler(eul, att->q_nb);
+    eul[2] = mca_wrap_pi(psi_m);
+    mca_quat_from_euler(att->q_nb, eul);
+    for (size_t i = 0; i < MCA_ATT_NX; ++i) {
+        att->p[2u * MCA_ATT_NX + i] = 0.0f;
+        att->p[i * MCA_ATT_NX + 2u] = 0.0f;
+    }
+    att->p[2u * MCA_ATT_NX + 2u] = r;
+    return MCA_OK;
+}
+
 mca_status_t mca_att_mag_heading(const mca_att_t *att, const float m[3], float decl, float *psi_m)
 {
     if (att == NULL || m == NULL || psi_m == NULL) {

@@ -18,8 +18,11 @@ void mca_nav_config_default(mca_nav_config_t *c)
     mca_cs_config_default_v(&c->cs_v);
     mca_att_config_default(&c->att);
     c->comp_mode = MCA_COMP_CS;
-    c->yaw_source = MCA_YAW_NONE;
-    c->cs_lag_s = 0.3f;
+    c->yaw_source = MCA_YAW_COG; /* a ground vehicle moves along its nose */
+    c->cs_h.sigma_a0_mps2 = 1.0f; /* ALGORITHMS.md 8: the presets' CS tuning */
+    c->cs_h.tau_a_s = 2.0f;
+    c->cs_v.tau_a_s = 2.0f;
+    c->cs_lag_s = 0.2f;
     c->gps_timeout_s = 1.5f;
     c->grav_period_s = 0.1f;
     c->nogps_rp_var_rad2 = 0.05f * 0.05f;
@@ -35,18 +38,17 @@ void mca_nav_config_default(mca_nav_config_t *c)
     c->gps_vel_sigma_mps = 0.2f;
     c->mag_declination_rad = 0.0f;
     c->mag_yaw_sigma_rad = 0.05f;
-    c->cog_min_speed_mps = 5.0f;
+    c->cog_min_speed_mps = 3.0f;
     c->cog_sigma0_rad = 0.05f;
+    c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
 }
 
 void mca_nav_config_fixedwing(mca_nav_config_t *c)
 {
     mca_nav_config_default(c);
     c->yaw_source = MCA_YAW_COG;
+    c->cog_min_speed_mps = 5.0f;
     c->cs_h.a_max_mps2 = 8.0f;
-    c->cs_h.tau_a_s = 3.0f;
-    c->cs_v.tau_a_s = 3.0f;
-    c->cs_lag_s = 0.3f;
     c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
 }
 
@@ -55,9 +57,7 @@ void mca_nav_config_multirotor(mca_nav_config_t *c)
     mca_nav_config_default(c);
     c->yaw_source = MCA_YAW_MAG;
     c->cs_h.a_max_mps2 = 5.0f;
-    c->cs_h.tau_a_s = 1.0f;
-    c->cs_v.tau_a_s = 1.0f;
-    c->cs_lag_s = 0.2f;
+    c->cs_lag_s = 0.3f;
     c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
 }
 
@@ -252,6 +252,18 @@ static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const
     return st == MCA_ERR_BAD_ARG ? MCA_OK : st; /* a gate is not an error of the caller */
 }
 
+/* Yaw observation, or the alignment when yaw was never observed (ALGORITHMS.md 7). */
+static mca_status_t yaw_obs(mca_nav_t *nav, float psi_m, float r, const float q_d[4])
+{
+    const mca_status_t st = nav->have_yaw_obs ? mca_att_update_yaw(&nav->att, psi_m, r, q_d, nav->ws, NULL)
+                                              : mca_att_align_yaw(&nav->att, psi_m, r);
+    if (st == MCA_OK) {
+        nav->t_lastyaw_us = nav->t_imu_us;
+        nav->have_yaw_obs = 1u;
+    }
+    return st;
+}
+
 static int gps_lost(const mca_nav_t *nav, uint64_t t)
 {
     return !nav->have_fix || (t > nav->t_lastfix_us &&
@@ -407,6 +419,10 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                 e = hist_newest(nav);
             }
             memcpy(nav->acc_comp_n, acc, sizeof(acc));
+            if (nav->cfg.comp_mode != MCA_COMP_OFF) {
+                /* a yaw error turns the horizontal compensation (ALGORITHMS.md 8, GPS step 5) */
+                r_acc += (acc[0] * acc[0] + acc[1] * acc[1]) * nav->att.p[14] / g2;
+            }
             if (observe) {
                 st = gravity_obs(nav, e, NULL, acc, r_acc);
                 if (st != MCA_OK) {
@@ -419,10 +435,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                     if (ec != NULL) {
                         const float r = nav->cfg.cog_sigma0_rad * nav->cfg.cog_sigma0_rad +
                                         (s_acc / speed) * (s_acc / speed);
-                        if (mca_att_update_yaw(&nav->att, atan2f(vel[1], vel[0]), r, ec->q_nb, nav->ws, NULL) == MCA_OK) {
-                            nav->t_lastyaw_us = nav->t_imu_us;
-                            nav->have_yaw_obs = 1u;
-                        }
+                        (void)yaw_obs(nav, atan2f(vel[1], vel[0]), r, ec->q_nb); /* gates are not errors */
                     }
                 }
             }
@@ -456,13 +469,10 @@ mca_status_t mca_nav_mag(mca_nav_t *nav, uint64_t t_us, const float mag_b[3])
     if (st != MCA_OK) {
         return st;
     }
-    st = mca_att_update_yaw(&nav->att, psi, nav->cfg.mag_yaw_sigma_rad * nav->cfg.mag_yaw_sigma_rad,
-                            nav->att.q_nb, nav->ws, NULL);
+    st = yaw_obs(nav, psi, nav->cfg.mag_yaw_sigma_rad * nav->cfg.mag_yaw_sigma_rad, nav->att.q_nb);
     if (st == MCA_OK) {
         nav->t_lastmag_us = t_us;
         nav->have_mag_obs = 1u;
-        nav->t_lastyaw_us = nav->t_imu_us;
-        nav->have_yaw_obs = 1u;
         return MCA_OK;
     }
     return st == MCA_ERR_BAD_ARG ? MCA_OK : st;

@@ -70,6 +70,13 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f_b_mps2[3], con
 mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m_rad, float r_rad2, const float q_d[4], float *ws,
                                 mca_update_report_t *rep);
 
+/**
+ * Yaw alignment (ALGORITHMS.md 7): set yaw to psi_m keeping roll and pitch, P row/column 2
+ * zeroed and P[2][2] = r_rad2. For the first yaw observation, instead of an update.
+ * @return MCA_ERR_NONFINITE, MCA_ERR_BAD_ARG (r <= 0), MCA_OK.
+ */
+mca_status_t mca_att_align_yaw(mca_att_t *att, float psi_m_rad, float r_rad2);
+
 /** Tilt-compensated magnetic heading of m_b at the current roll/pitch, plus declination. */
 mca_status_t mca_att_mag_heading(const mca_att_t *att, const float mag_b[3], float declination_rad,
                                  float *psi_m_rad);
