@@ -8,7 +8,6 @@ printed. Statistical tolerances are ~5 standard deviations of the estimator, der
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest

@@ -46,6 +46,7 @@ against 50-digit mpmath; x = alpha T):
 from __future__ import annotations
 
 import math
+import numbers
 import operator
 from dataclasses import dataclass, fields, replace
 from fractions import Fraction
@@ -320,10 +321,9 @@ class CsAxisConfig:
 
 def _check_dt(T: object, dt_max_s: float) -> float:
     """ALGORITHMS.md 2, predict step 1: 0 < T <= dt_max, finite; else BAD_DT."""
-    try:
-        t = float(T)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise BadDtError(f"T must be a number, got {T!r}") from exc
+    if not isinstance(T, numbers.Real) or isinstance(T, bool):
+        raise BadDtError(f"T must be a real number, got {T!r}")
+    t = float(T)
     if not (math.isfinite(t) and 0.0 < t <= dt_max_s):
         raise BadDtError(f"T must be finite with 0 < T <= {dt_max_s}, got {t!r}")
     return t

@@ -1,19 +1,60 @@
-"""Measurement update shared by every filter: ALGORITHMS.md section 1 (plain mode).
+"""Measurement update shared by every filter: ALGORITHMS.md section 1 (plain mode), and
+its robust and adaptive modes, ALGORITHMS.md section 5 (DESIGN.md 5).
 
-Float64 golden model, NumPy only (scipy is a test dependency, not a runtime one). Pure
-functions: inputs are never modified, so on any error the caller's state is exactly what
-it was.
+Float64 golden model. ``kf_update`` is NumPy only; the robust modes also need chi-square
+quantiles, taken from ``scipy.stats.chi2.ppf(1 - a, m)`` (imported lazily, so importing
+this module and calling ``kf_update`` does not need scipy). Inputs are never modified,
+and ``robust_update`` changes its memory only when it succeeds, so on any error the
+caller's state is exactly what it was.
+
+Robust modes, one block of functions per paper, each read like the equations:
+
+* FTA, paper 000: ``fta_gamma`` (eq. 13), gain on ``gamma C`` (eq. 15), Joseph with ``R`` (eq. 16).
+* AKF, paper 004: ``akf_row_statistics`` (recursive eq. 15-16), ``akf_inflated_noise``
+  (eq. 15), ``akf_q_scale`` (eq. 18-19).
+* Fuzzy three-threshold detector, paper 001: ``fuzzy_thresholds``, ``fuzzy_memberships``
+  (eq. 10), ``fuzzy_mu`` (eq. 11), ``fuzzy_detector_step`` (eq. 12 and the alarm rules).
+* IGG-III, paper 003: ``igg_weight`` (the three-segment weight) and ``igg_reweight``
+  (the largest-first iteration).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from mcahrs.errors import BadArgError, NonFiniteError, SingularError
+from mcahrs.errors import BadArgError, BadConfigError, NonFiniteError, SingularError
 
-__all__ = ["UpdateReport", "kf_update"]
+__all__ = [
+    "AKF_ALPHA",
+    "FTA_ALPHA",
+    "FUZZY_TD1_ALPHA",
+    "FUZZY_TD2_ALPHA",
+    "FUZZY_TD3_OVER_TD2",
+    "MODES",
+    "MODE_NUMBERS",
+    "M_MAX",
+    "RobustConfig",
+    "RobustReport",
+    "RobustState",
+    "UpdateReport",
+    "akf_inflated_noise",
+    "akf_q_scale",
+    "akf_row_statistics",
+    "chi2_quantile",
+    "fta_gamma",
+    "fuzzy_detector_step",
+    "fuzzy_memberships",
+    "fuzzy_mu",
+    "fuzzy_thresholds",
+    "igg_reweight",
+    "igg_weight",
+    "kf_update",
+    "robust_update",
+]
 
 # Relative asymmetry tolerated in P and R (they are documented as symmetric; this only
 # catches a caller passing something that is not a covariance at all).
