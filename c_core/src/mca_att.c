@@ -154,9 +154,12 @@ static void delay_transport(float c_d[9], const float q_d[4], const float q[4])
     }
 }
 
-/* Update of the error state from zero with rows e (m x 3, at q_d), residual nu, diag R. */
+/* Update of the error state from zero with rows e (m x 3, at q_d), residual nu, diag R.
+ * level_only: remove the vertical component of the attitude correction (ALGORITHMS.md 7,
+ * roll/pitch step 7). */
 static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, const float *nu, float r,
-                                 const float q_d[4], int robust, float *ws, mca_update_report_t *rep)
+                                 const float q_d[4], int robust, int level_only, float *ws,
+                                 mca_update_report_t *rep)
 {
     float c_d[9], h[2u * MCA_ATT_NX] = {0}, dx[MCA_ATT_NX] = {0}, rm[4] = {0};
     delay_transport(c_d, q_d, att->q_nb);
@@ -170,6 +173,15 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
     const mca_status_t st = mca_kf_update(dx, att->p, MCA_ATT_NX, h, nu, rm, m, robust ? &att->cfg.robust : NULL,
                                            robust ? &att->rs : NULL, ws, MCA_ATT_WS_LEN, rep);
     if (st == MCA_OK) {
+        if (level_only) {
+            float c[9];
+            mca_quat_to_dcm(c, att->q_nb);
+            /* u = C_nb^T e_down: third row of C_nb */
+            const float dot = c[6] * dx[0] + c[7] * dx[1] + c[8] * dx[2];
+            for (size_t i = 0; i < 3u; ++i) {
+                dx[i] -= dot * c[6u + i];
+            }
+        }
         correct(att, dx);
     }
     return st;
@@ -212,7 +224,7 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const floa
     const float e_rows[6] = {1.0f, sp * tt, cp * tt, 0.0f, cp, -sp};
     const float dev = att->cfg.rp_k_dev * fabsf(gn - g) / g;
     const float r = att->cfg.rp_sigma0_rad * att->cfg.rp_sigma0_rad + dev * dev + r_acc;
-    return euler_update(att, e_rows, 2u, nu, r, q_d, 1, ws, rep);
+    return euler_update(att, e_rows, 2u, nu, r, q_d, 1, 1, ws, rep);
 }
 
 mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
@@ -235,7 +247,7 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
     const float ct = cosf(eul[1]);
     const float e_row[3] = {0.0f, sinf(eul[0]) / ct, cosf(eul[0]) / ct};
     const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};
-    return euler_update(att, e_row, 1u, nu, r, q_d, 0, ws, rep);
+    return euler_update(att, e_row, 1u, nu, r, q_d, 0, 0, ws, rep);
 }
 
 mca_status_t mca_att_align_yaw(mca_att_t *att, float psi_m, float r)

@@ -26,6 +26,7 @@ void mca_nav_config_default(mca_nav_config_t *c)
     c->gps_timeout_s = 1.5f;
     c->grav_period_s = 0.1f;
     c->nogps_rp_var_rad2 = 0.05f * 0.05f;
+    c->nogps_centripetal = 1u;
     c->gravity_mps2 = 0.0f;
     c->imu_dt_max_s = 0.1f;
     c->init_still_s = 1.0f;
@@ -56,9 +57,16 @@ void mca_nav_config_multirotor(mca_nav_config_t *c)
 {
     mca_nav_config_default(c);
     c->yaw_source = MCA_YAW_MAG;
+    c->nogps_centripetal = 0u; /* a multirotor does not move along its nose */
     c->cs_h.a_max_mps2 = 5.0f;
     c->cs_lag_s = 0.3f;
     c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
+}
+
+/* A configured duration in integer microseconds (ALGORITHMS.md 8, Times). */
+static uint64_t us(float s)
+{
+    return (uint64_t)(s * 1e6f + 0.5f);
 }
 
 static int pos(float v)
@@ -84,7 +92,7 @@ mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
     const float hist_s = (float)(MCA_HIST_LEN - 1) * (float)MCA_HIST_DT_US * 1e-6f;
     if (c->comp_mode > MCA_COMP_VELDIFF || c->yaw_source > MCA_YAW_COG || !nonneg(c->cs_lag_s) ||
         c->cs_lag_s > hist_s || !pos(c->gps_timeout_s) || !pos(c->grav_period_s) ||
-        !nonneg(c->nogps_rp_var_rad2) || !nonneg(c->gravity_mps2) || !pos(c->imu_dt_max_s) ||
+        !nonneg(c->nogps_rp_var_rad2) || c->nogps_centripetal > 1u || !nonneg(c->gravity_mps2) || !pos(c->imu_dt_max_s) ||
         !pos(c->init_still_s) || !nonneg(c->init_gyro_still_rps) || !nonneg(c->init_acc_still_mps2) ||
         !pos(c->init_timeout_s) || !pos(c->accel_sat_mps2) || !pos(c->gps_pos_sigma_m) ||
         !pos(c->gps_alt_sigma_m) || !pos(c->gps_vel_sigma_mps) || !isfinite(c->mag_declination_rad) ||
@@ -107,6 +115,10 @@ mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg)
     nav->cfg = *cfg;
     nav->g_mps2 = cfg->gravity_mps2 > 0.0f ? cfg->gravity_mps2 : G0;
     nav->att.q_nb[0] = 1.0f;
+    nav->last_rp_t = NAN; /* not set yet */
+    for (size_t i = 0; i < 3u; ++i) {
+        nav->last_gps_t[i] = NAN;
+    }
     return MCA_OK;
 }
 
@@ -127,7 +139,7 @@ static void align(mca_nav_t *nav, const float f_mean[3], const float bias[3])
 }
 
 /* ALGORITHMS.md 8, IMU step 4. */
-static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f[3], float dt)
+static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f[3], uint32_t dt_us)
 {
     const float g = nav->g_mps2;
     const int still = norm3(w) <= nav->cfg.init_gyro_still_rps && fabsf(norm3(f) - g) <= nav->cfg.init_acc_still_mps2;
@@ -137,20 +149,20 @@ static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f
             nav->init_w_sum[i] += w[i];
         }
         nav->init_n++;
-        nav->init_win_s += dt;
+        nav->init_win_us += dt_us;
     } else {
         memset(nav->init_f_sum, 0, sizeof(nav->init_f_sum));
         memset(nav->init_w_sum, 0, sizeof(nav->init_w_sum));
         nav->init_n = 0u;
-        nav->init_win_s = 0.0f;
+        nav->init_win_us = 0u;
     }
     const float zero[3] = {0.0f, 0.0f, 0.0f};
-    if (nav->init_n > 0u && nav->init_win_s >= nav->cfg.init_still_s) {
+    if (nav->init_n > 0u && nav->init_win_us >= us(nav->cfg.init_still_s)) {
         const float inv = 1.0f / (float)nav->init_n;
         const float fm[3] = {nav->init_f_sum[0] * inv, nav->init_f_sum[1] * inv, nav->init_f_sum[2] * inv};
         const float wm[3] = {nav->init_w_sum[0] * inv, nav->init_w_sum[1] * inv, nav->init_w_sum[2] * inv};
         align(nav, fm, wm);
-    } else if ((float)(nav->t_imu_us - nav->t_first_us) * 1e-6f >= nav->cfg.init_timeout_s) {
+    } else if (nav->t_imu_us - nav->t_first_us >= us(nav->cfg.init_timeout_s)) {
         if (nav->init_n > 0u) {
             const float inv = 1.0f / (float)nav->init_n;
             const float fm[3] = {nav->init_f_sum[0] * inv, nav->init_f_sum[1] * inv, nav->init_f_sum[2] * inv};
@@ -247,9 +259,17 @@ static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const
         nav->last_rp_t = rep.t_stat;
         return MCA_OK;
     }
+    /* a gate or a failed update: skipped, not an error of the caller (ALGORITHMS.md 8) */
     nav->flags |= MCA_FLAG_GRAV_SKIPPED;
     nav->n_grav_skip++;
-    return st == MCA_ERR_BAD_ARG ? MCA_OK : st; /* a gate is not an error of the caller */
+    return MCA_OK;
+}
+
+/* A skipped observation attempt (no usable input). */
+static void gravity_skip(mca_nav_t *nav)
+{
+    nav->flags |= MCA_FLAG_GRAV_SKIPPED;
+    nav->n_grav_skip++;
 }
 
 /* Yaw observation, or the alignment when yaw was never observed (ALGORITHMS.md 7). */
@@ -266,8 +286,37 @@ static mca_status_t yaw_obs(mca_nav_t *nav, float psi_m, float r, const float q_
 
 static int gps_lost(const mca_nav_t *nav, uint64_t t)
 {
-    return !nav->have_fix || (t > nav->t_lastfix_us &&
-                              (float)(t - nav->t_lastfix_us) * 1e-6f > nav->cfg.gps_timeout_s);
+    return !nav->have_fix || (t > nav->t_lastfix_us && t - nav->t_lastfix_us > us(nav->cfg.gps_timeout_s));
+}
+
+/* Roll/pitch observation while GPS is lost (ALGORITHMS.md 8, IMU step 6). */
+static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
+{
+    const uint64_t t_us = nav->t_imu_us;
+    nav->t_lastgrav_us = t_us;
+    float acc[3] = {0.0f, 0.0f, 0.0f};
+    const uint8_t mode = nav->cfg.comp_mode;
+    if (mode == MCA_COMP_CS && nav->have_fix) {
+        const float age = (float)(t_us - nav->t_lastfix_us) * 1e-6f;
+        for (size_t i = 0; i < 3u; ++i) {
+            const float tau = i < 2u ? nav->cfg.cs_h.tau_a_s : nav->cfg.cs_v.tau_a_s;
+            acc[i] = age <= 4.0f * tau ? nav->acc_comp_n[i] * expf(-age / tau) : 0.0f;
+        }
+    }
+    if (mode != MCA_COMP_OFF && nav->cfg.nogps_centripetal && nav->have_fix && (nav->prev_vel_mask & 3u) == 3u) {
+        /* a vehicle moving along its nose at V, turning at w: a_b = w x [V, 0, 0] = [0, w_z V, -w_y V] */
+        const float v = sqrtf(nav->vel_prev[0] * nav->vel_prev[0] + nav->vel_prev[1] * nav->vel_prev[1]);
+        const float wy = gyro[1] - nav->att.bias_rps[1], wz = gyro[2] - nav->att.bias_rps[2];
+        const float ab[3] = {0.0f, wz * v, -wy * v};
+        float c[9];
+        mca_quat_to_dcm(c, nav->att.q_nb);
+        for (size_t i = 0; i < 3u; ++i) {
+            acc[i] += c[i * 3u] * ab[0] + c[i * 3u + 1u] * ab[1] + c[i * 3u + 2u] * ab[2];
+        }
+    }
+    const float g = nav->g_mps2, sa = nav->cfg.cs_h.sigma_a0_mps2;
+    const float r_acc = nav->cfg.nogps_rp_var_rad2 + sa * sa * nav->cfg.cs_h.tau_a_s / (g * g * nav->cfg.grav_period_s);
+    (void)gravity_obs(nav, hist_newest(nav), nav->att.q_nb, acc, r_acc);
 }
 
 mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], const float accel[3])
@@ -290,7 +339,7 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], con
     const uint64_t dt_us = t_us - nav->t_imu_us;
     const float dt = (float)dt_us * 1e-6f;
     nav->t_imu_us = t_us;
-    if (dt > nav->cfg.imu_dt_max_s) {
+    if (dt_us > us(nav->cfg.imu_dt_max_s)) {
         return MCA_ERR_BAD_DT; /* re-anchored only */
     }
     const float sat = nav->cfg.accel_sat_mps2;
@@ -299,23 +348,13 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], con
         nav->flags |= MCA_FLAG_SATURATED;
     }
     if (!nav->aligned) {
-        accumulate_alignment(nav, gyro, accel, dt);
+        accumulate_alignment(nav, gyro, accel, (uint32_t)dt_us);
         return MCA_OK;
     }
     (void)mca_att_propagate(&nav->att, gyro, dt); /* inputs checked above */
     hist_accumulate(nav, accel, (uint32_t)dt_us, saturated);
-    if (gps_lost(nav, t_us) &&
-        (float)(t_us - nav->t_lastgrav_us) * 1e-6f >= nav->cfg.grav_period_s) {
-        nav->t_lastgrav_us = t_us;
-        float acc[3] = {0.0f, 0.0f, 0.0f};
-        if (nav->cfg.comp_mode == MCA_COMP_CS && nav->have_fix) {
-            const float age = (float)(t_us - nav->t_lastfix_us) * 1e-6f;
-            for (size_t i = 0; i < 3u; ++i) {
-                const float tau = i < 2u ? nav->cfg.cs_h.tau_a_s : nav->cfg.cs_v.tau_a_s;
-                acc[i] = age <= 4.0f * tau ? nav->acc_comp_n[i] * expf(-age / tau) : 0.0f;
-            }
-        }
-        return gravity_obs(nav, hist_newest(nav), nav->att.q_nb, acc, nav->cfg.nogps_rp_var_rad2);
+    if (gps_lost(nav, t_us) && t_us - nav->t_lastgrav_us >= us(nav->cfg.grav_period_s)) {
+        nav_nogps_observation(nav, gyro);
     }
     return MCA_OK;
 }
@@ -401,11 +440,14 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                     acc[i] = nav->cs.axis[i].x[2];
                 }
                 r_acc = (nav->cs.axis[0].p[12] + nav->cs.axis[1].p[12]) / (2.0f * g2);
-                e = hist_find(nav, (int64_t)fix->t_us - (int64_t)(nav->cfg.cs_lag_s * 1e6f));
+                e = hist_find(nav, (int64_t)fix->t_us - (int64_t)us(nav->cfg.cs_lag_s));
             } else if (nav->cfg.comp_mode == MCA_COMP_VELDIFF) {
                 const float dtf = (float)(fix->t_us - nav->t_prevfix_us) * 1e-6f;
-                if (dtf > nav->cfg.gps_timeout_s) {
+                if (fix->t_us - nav->t_prevfix_us > us(nav->cfg.gps_timeout_s)) {
                     observe = 0;
+                    if (nav->aligned) {
+                        gravity_skip(nav); /* no usable previous fix */
+                    }
                 }
                 for (size_t i = 0; i < 3u; ++i) {
                     const uint8_t bit = (uint8_t)(1u << i);
@@ -424,10 +466,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                 r_acc += (acc[0] * acc[0] + acc[1] * acc[1]) * nav->att.p[14] / g2;
             }
             if (observe) {
-                st = gravity_obs(nav, e, NULL, acc, r_acc);
-                if (st != MCA_OK) {
-                    return st;
-                }
+                (void)gravity_obs(nav, e, NULL, acc, r_acc); /* failures are counted skips */
                 const float speed = sqrtf(vel[0] * vel[0] + vel[1] * vel[1]);
                 if (nav->cfg.yaw_source == MCA_YAW_COG && has_vne && speed >= nav->cfg.cog_min_speed_mps &&
                     speed > 0.0f) {
@@ -460,14 +499,13 @@ mca_status_t mca_nav_mag(mca_nav_t *nav, uint64_t t_us, const float mag_b[3])
     if (nav->cfg.yaw_source != MCA_YAW_MAG || !nav->aligned) {
         return MCA_OK;
     }
-    if (nav->have_mag_obs && (t_us < nav->t_lastmag_us ||
-                              (float)(t_us - nav->t_lastmag_us) * 1e-6f < nav->cfg.grav_period_s)) {
+    if (nav->have_mag_obs && (t_us < nav->t_lastmag_us || t_us - nav->t_lastmag_us < us(nav->cfg.grav_period_s))) {
         return MCA_OK;
     }
     float psi;
     mca_status_t st = mca_att_mag_heading(&nav->att, mag_b, nav->cfg.mag_declination_rad, &psi);
     if (st != MCA_OK) {
-        return st;
+        return MCA_OK; /* zero vector: skipped (ALGORITHMS.md 8) */
     }
     st = yaw_obs(nav, psi, nav->cfg.mag_yaw_sigma_rad * nav->cfg.mag_yaw_sigma_rad, nav->att.q_nb);
     if (st == MCA_OK) {

@@ -50,7 +50,8 @@ typedef struct {
     float cs_lag_s;             /**< pairing delay of the CS acceleration, [0, 0.98] (history span) */
     float gps_timeout_s;        /**< no fix this long: GPS lost, > 0 */
     float grav_period_s;        /**< observation period without GPS, > 0 */
-    float nogps_rp_var_rad2;    /**< roll/pitch variance added without GPS, >= 0 */
+    float nogps_rp_var_rad2;    /**< roll/pitch variance added without GPS (base), >= 0 */
+    uint8_t nogps_centripetal;  /**< without GPS remove w x [V,0,0] (vehicle moves along its nose) */
     float gravity_mps2;         /**< > 0 constant; 0 normal gravity at home */
     float imu_dt_max_s;         /**< longest accepted IMU step, > 0 */
     float init_still_s;         /**< alignment averaging window, > 0 */
@@ -113,7 +114,7 @@ typedef struct {
     uint8_t hist_sat;        /**< saturated sample in the entry being built */
     float init_f_sum[3];
     float init_w_sum[3];
-    float init_win_s;
+    uint32_t init_win_us;    /**< alignment window time, integer sum of dt_us */
     uint32_t init_n;
     uint8_t init_still;      /**< every sample of the window was still */
     float g_mps2;
