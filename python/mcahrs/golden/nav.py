@@ -1,0 +1,898 @@
+"""Navigation top level: float64 golden model of ALGORITHMS.md 8 (and the replay order of 9).
+
+Ties the CS maneuver filter (:mod:`mcahrs.golden.cs`), the attitude EKF
+(:mod:`mcahrs.golden.attitude`) and geodetic -> NED (:mod:`mcahrs.golden.geo`) together:
+alignment, the history ring, the IMU / GPS / magnetometer steps, the output record, and
+:func:`run`, a batch replay of a :class:`mcahrs.samples.Recording`.
+
+Each step either succeeds or raises an :class:`mcahrs.errors.McaError` subclass with the
+state unchanged (the one documented exception: ``BadDtError`` from the IMU step re-anchors
+the IMU time).
+
+Choices where ALGORITHMS.md leaves room (to be confirmed against the C core / the spec)
+------------------------------------------------------------------------------------------
+1.  Durations in the config (``grav_period_s``, ``gps_timeout_s``, ``init_still_s``,
+    ``init_timeout_s``, ``cs_lag_s``, the 10 s of ``yaw_unobserved``) become integer
+    microseconds once, ``round(x * 1e6)``, and every time comparison is done in integer us
+    (``100000 * 1e-6 != 0.1`` in floating point). The alignment window time is the integer
+    sum of its samples' ``dt_us``.
+2.  ``MCA_HIST_LEN`` is 50 as ALGORITHMS.md 8 now says (the brief said 64; ``Nav(hist_len=)``
+    takes either). History interval accumulator: reset to 0 (not carried over) at each push.
+    Lookup: smallest ``|t_entry - t|``, ties to the older; ``t <`` oldest entry time, or an
+    empty ring, is a miss.
+3.  Lost-GPS roll/pitch timer: due when ``t_us - t_last >= grav_period_us``; ``t_last`` is the
+    alignment sample's time, then the time of the last due attempt (made or skipped).
+    ``r_acc = nogps_rp_var`` in every comp_mode.
+4.  A roll/pitch or yaw observation whose Kalman update fails (SINGULAR / NONFINITE) counts
+    as skipped; it never changes the status of the step (IMU / GPS / mag) that made it.
+5.  GPS step: accuracies that are NaN, infinite or <= 0 use the configured defaults; the
+    altitude range is checked only when the fix has altitude (an absent value is not looked
+    at). ``a_last`` (the lost-GPS decay start) is the CS ``a`` after the update, 0 after a
+    home fix or a CS re-initialisation.
+6.  Course over ground needs the NE-velocity flag (``speed_mps``/``course_rad`` are not used);
+    its ``s_acc`` is the fix's effective ``s_acc`` (fix value, else ``gps_vel_sigma_mps`` = 0.2),
+    not a separate 0.1 default. It uses the history entry nearest ``t_fix`` (skipped on a miss;
+    saturation does not matter to it) and is made even when the roll/pitch one was skipped.
+7.  ``yaw0_var_rad2`` of the attitude config is used as given: the default (ground vehicle,
+    no yaw source) is (180 deg)^2; the ``fixedwing`` and ``multirotor`` presets set (30 deg)^2.
+    A caller who sets ``yaw_source`` by hand sets ``yaw0_var_rad2`` too. Preset ``tau_a``
+    applies to both the horizontal and the vertical CS axes.
+8.  Magnetometer: non-finite is NONFINITE even when it is not the yaw source; ``|m_b| == 0`` is
+    skipped with status OK; the one-per-``grav_period`` limit runs on the magnetometer's
+    ``t_us`` and only observations attempted restart it.
+9.  Flags: ``saturated`` is sticky (any accepted IMU sample with a ``dt``, aligned or not);
+    ``grav_skipped`` and ``hist_miss`` describe the latest roll/pitch attempt (course-over-
+    ground lookups do not touch them); ``yaw_unobserved``: ``yaw_source == 0``, no yaw
+    observation yet, or the last one more than 10 s of IMU time ago (its time is the newest
+    IMU time when it was made). Before home / alignment the outputs are the zero state
+    (q = [1, 0, 0, 0], P = 0, CS x = P = 0); ``rp_T`` and ``gps_T`` are NaN until first set, and
+    ``gps_T`` of an axis keeps its last value when that axis is not updated.
+10. Output Euler order is (roll, pitch, yaw); CS P diagonals are flattened axis-major:
+    ``[N_pp, N_vv, N_aa, E_pp, E_vv, E_aa, D_pp, D_vv, D_aa]``.
+11. Roll/pitch attempts counted (made / skipped): every GPS-step attempt when aligned (mode 2
+    without a usable previous fix counts as skipped; a CS re-initialisation makes none) and
+    every due lost-GPS attempt.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections import deque
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from mcahrs.errors import (
+    BadArgError,
+    BadConfigError,
+    BadDtError,
+    BadMaskError,
+    McaError,
+    NonFiniteError,
+    NotInitError,
+    NullError,
+    RangeError,
+    SingularError,
+    TimeBackwardsError,
+)
+from mcahrs.golden import attitude as att
+from mcahrs.golden import geo
+from mcahrs.golden.cs import MASK_POS, MASK_VEL, Cs3, CsAxisConfig
+from mcahrs.samples import GNSS_HAS_ALT, GNSS_HAS_VEL_D, GNSS_HAS_VEL_NE, Recording
+
+__all__ = [
+    "COMP_CS",
+    "COMP_GPS_DIFF",
+    "COMP_OFF",
+    "FLAG_ALIGNED",
+    "FLAG_GPS_LOST",
+    "FLAG_GRAV_SKIPPED",
+    "FLAG_HIST_MISS",
+    "FLAG_HOME_SET",
+    "FLAG_SATURATED",
+    "FLAG_YAW_UNOBSERVED",
+    "MCA_HIST_DT_US",
+    "MCA_HIST_LEN",
+    "STATUS_CODES",
+    "YAW_COG",
+    "YAW_MAG",
+    "YAW_NONE",
+    "YAW_UNOBSERVED_US",
+    "HistEntry",
+    "Nav",
+    "NavConfig",
+    "NavOutput",
+    "replay_order",
+    "run",
+    "status_code",
+]
+
+MCA_HIST_LEN = 50  # history ring entries (ALGORITHMS.md 8)
+YAW_UNOBSERVED_US = 10_000_000  # no yaw observation for this long: yaw unobserved
+MCA_HIST_DT_US = 20_000  # IMU time per entry, us
+
+COMP_OFF, COMP_CS, COMP_GPS_DIFF = 0, 1, 2  # comp_mode
+YAW_NONE, YAW_MAG, YAW_COG = 0, 1, 2  # yaw_source
+
+FLAG_ALIGNED = 1 << 0
+FLAG_HOME_SET = 1 << 1
+FLAG_GPS_LOST = 1 << 2
+FLAG_YAW_UNOBSERVED = 1 << 3
+FLAG_GRAV_SKIPPED = 1 << 4  # last roll/pitch observation attempt was skipped
+FLAG_SATURATED = 1 << 5  # a saturated accelerometer sample has been seen
+FLAG_HIST_MISS = 1 << 6  # last history lookup missed
+
+G_DEFAULT = 9.80665  # gravity before home when not configured
+
+# ALGORITHMS.md 4 status codes; OK is 0.
+STATUS_CODES: dict[type[McaError], int] = {
+    NullError: 1,
+    BadDtError: 2,
+    NonFiniteError: 3,
+    SingularError: 4,
+    BadMaskError: 5,
+    BadArgError: 6,
+    BadConfigError: 7,
+    TimeBackwardsError: 8,
+    RangeError: 9,
+    NotInitError: 10,
+}
+
+
+def status_code(exc: McaError) -> int:
+    """Integer status code of an McaError (ALGORITHMS.md 4)."""
+    for cls in type(exc).__mro__:
+        if cls in STATUS_CODES:
+            return STATUS_CODES[cls]
+    raise TypeError(f"no status code for {type(exc).__name__}")
+
+
+def _us(seconds: float) -> int:
+    return int(round(seconds * 1e6))
+
+
+# --------------------------------------------------------------------------------------
+# Configuration (ALGORITHMS.md 8 table)
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class NavConfig:
+    """Navigation configuration. The plain default is a ground vehicle."""
+
+    cs_h: CsAxisConfig = field(default_factory=CsAxisConfig.horizontal)  # CS axes N, E
+    cs_v: CsAxisConfig = field(default_factory=CsAxisConfig.vertical)  # CS axis D
+    att: att.AttConfig = field(default_factory=att.AttConfig)
+    comp_mode: int = COMP_CS  # 0 off, 1 CS maneuver compensation, 2 GPS velocity differencing
+    yaw_source: int = YAW_NONE  # 0 none, 1 magnetometer, 2 course over ground
+    cs_lag_s: float = 0.3  # lag of the CS acceleration behind the truth (pairing delay)
+    gps_timeout_s: float = 1.5  # no fix for this long: GPS lost
+    grav_period_s: float = 0.1  # observation period while GPS is lost or never seen
+    nogps_rp_var_rad2: float = 0.05**2  # roll/pitch observation variance added when GPS is lost
+    gravity_mps2: float = 0.0  # > 0: this constant; 0: normal gravity at home
+    imu_dt_max_s: float = 0.1  # longest accepted IMU step
+    init_still_s: float = 1.0  # averaging window of the initial alignment
+    init_gyro_still_rps: float = 0.05  # max gyro norm to count as still
+    init_acc_still_mps2: float = 0.5  # max | |f| - g | to count as still
+    init_timeout_s: float = 5.0  # align from whatever was averaged after this long
+    accel_sat_mps2: float = 156.9  # any |f_i| >= this: saturated sample
+    gps_pos_sigma_m: float = 2.5  # used when a fix gives no h_acc
+    gps_alt_sigma_m: float = 5.0  # used when a fix gives no v_acc
+    gps_vel_sigma_mps: float = 0.2  # used when a fix gives no s_acc
+    mag_declination_rad: float = 0.0
+    mag_yaw_sigma_rad: float = 0.05
+    cog_min_speed_mps: float = 5.0
+    cog_sigma0_rad: float = 0.05
+
+    @classmethod
+    def ground_vehicle(cls) -> NavConfig:
+        """The plain default."""
+        return cls()
+
+    @classmethod
+    def fixedwing(cls) -> NavConfig:
+        """Fixed-wing preset: yaw from course over ground, a_max_h 8, tau_a 3, cs_lag 0.3."""
+        return cls._preset(YAW_COG, a_max_h=8.0, tau_a=3.0, cs_lag=0.3)
+
+    @classmethod
+    def multirotor(cls) -> NavConfig:
+        """Multirotor preset: yaw from the magnetometer, a_max_h 5, tau_a 1, cs_lag 0.2."""
+        return cls._preset(YAW_MAG, a_max_h=5.0, tau_a=1.0, cs_lag=0.2)
+
+    @classmethod
+    def _preset(cls, yaw_source: int, a_max_h: float, tau_a: float, cs_lag: float) -> NavConfig:
+        base = cls()
+        return replace(
+            base,
+            cs_h=replace(base.cs_h, a_max_mps2=a_max_h, tau_a_s=tau_a),
+            cs_v=replace(base.cs_v, tau_a_s=tau_a),
+            att=replace(base.att, yaw0_var_rad2=math.radians(30.0) ** 2),
+            yaw_source=yaw_source,
+            cs_lag_s=cs_lag,
+        )
+
+    def validate(self) -> None:
+        """Raise BadConfigError on any value out of range."""
+        if not isinstance(self.cs_h, CsAxisConfig) or not isinstance(self.cs_v, CsAxisConfig):
+            raise BadConfigError("cs_h / cs_v must be CsAxisConfig")
+        if not isinstance(self.att, att.AttConfig):
+            raise BadConfigError("att must be AttConfig")
+        self.cs_h.validate()
+        self.cs_v.validate()
+        self.att.validate()
+        if self.comp_mode not in (COMP_OFF, COMP_CS, COMP_GPS_DIFF):
+            raise BadConfigError(f"comp_mode must be 0, 1 or 2, got {self.comp_mode!r}")
+        if self.yaw_source not in (YAW_NONE, YAW_MAG, YAW_COG):
+            raise BadConfigError(f"yaw_source must be 0, 1 or 2, got {self.yaw_source!r}")
+        nonneg = ("cs_lag_s", "nogps_rp_var_rad2", "gravity_mps2")
+        for f in fields(self):
+            if f.name in ("cs_h", "cs_v", "att", "comp_mode", "yaw_source"):
+                continue
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise BadConfigError(f"{f.name} must be a number, got {v!r}")
+            if not math.isfinite(v):
+                raise BadConfigError(f"{f.name} must be finite, got {v!r}")
+            if f.name == "mag_declination_rad":
+                continue
+            if f.name in nonneg:
+                if v < 0.0:
+                    raise BadConfigError(f"{f.name} must be >= 0, got {v!r}")
+            elif v <= 0.0:
+                raise BadConfigError(f"{f.name} must be > 0, got {v!r}")
+        for name in ("grav_period_s", "gps_timeout_s", "init_still_s", "init_timeout_s"):
+            if _us(getattr(self, name)) <= 0:
+                raise BadConfigError(f"{name} is shorter than 1 us")
+
+
+# --------------------------------------------------------------------------------------
+# History ring and output record
+# --------------------------------------------------------------------------------------
+
+
+class HistEntry(NamedTuple):
+    """One history entry: IMU time at its end, mean specific force, q at its end, saturated."""
+
+    t_us: int
+    f_b: tuple[float, float, float]
+    q: att.Quat
+    saturated: bool
+
+
+@dataclass(frozen=True)
+class NavOutput:
+    """Output record (ALGORITHMS.md 8, output)."""
+
+    t_us: int  # newest IMU time
+    q: np.ndarray  # (4,) q_nb
+    euler: np.ndarray  # (3,) roll, pitch, yaw
+    gyro_bias: np.ndarray  # (3,) rad/s
+    pos_ned: np.ndarray  # (3,) CS extrapolated to t_us
+    vel_ned: np.ndarray
+    acc_ned: np.ndarray
+    att_P_diag: np.ndarray  # (6,)
+    cs_P_diag: np.ndarray  # (9,) N(p, v, a), E(p, v, a), D(p, v, a)
+    rp_T: float  # last roll/pitch NIS
+    gps_T: np.ndarray  # (3,) last CS NIS per axis
+    flags: int
+    n_grav_made: int
+    n_grav_skipped: int
+    n_yaw_made: int
+
+
+def _finite3(v: Any) -> tuple[float, float, float]:
+    """Three floats from a sequence (not checked for finiteness); BadArgError if impossible."""
+    try:
+        if len(v) != 3:
+            raise BadArgError(f"expected 3 values, got {len(v)}")
+        return (float(v[0]), float(v[1]), float(v[2]))
+    except (TypeError, ValueError) as exc:
+        raise BadArgError(f"expected 3 numbers, got {v!r}") from exc
+
+
+class _Fix(NamedTuple):
+    t_us: int
+    lat_e7: int
+    lon_e7: int
+    alt_mm: int
+    vel: tuple[float, float, float]
+    h_acc: float
+    v_acc: float
+    s_acc: float
+    fix_type: int
+    flags: int
+
+
+def _get(fix: Any, name: str) -> Any:
+    if isinstance(fix, (np.void, dict)):
+        return fix[name]
+    return getattr(fix, name)
+
+
+def _accuracy(v: Any, default: float) -> float:
+    """ALGORITHMS.md 8 GPS step: NaN (or not finite, or <= 0) uses the configured default."""
+    x = float(v)
+    return x if (math.isfinite(x) and x > 0.0) else default
+
+
+# --------------------------------------------------------------------------------------
+# The navigation filter
+# --------------------------------------------------------------------------------------
+
+
+class Nav:
+    """Navigation filter state and its steps (ALGORITHMS.md 8)."""
+
+    def __init__(self, cfg: NavConfig | None = None, hist_len: int = MCA_HIST_LEN) -> None:
+        cfg = NavConfig() if cfg is None else cfg
+        if not (isinstance(hist_len, int) and hist_len >= 1):
+            raise BadConfigError(f"hist_len must be a positive int, got {hist_len!r}")
+        self.hist_len = hist_len
+        if not isinstance(cfg, NavConfig):
+            raise BadConfigError("cfg must be a NavConfig")
+        cfg.validate()
+        self.cfg = cfg
+        # Durations in integer us (choice 1).
+        self._grav_period_us = _us(cfg.grav_period_s)
+        self._gps_timeout_us = _us(cfg.gps_timeout_s)
+        self._init_still_us = _us(cfg.init_still_s)
+        self._init_timeout_us = _us(cfg.init_timeout_s)
+        self._cs_lag_us = _us(cfg.cs_lag_s)
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the state before the first sample (configuration kept)."""
+        cfg = self.cfg
+        # IMU time
+        self.t_first_us: int | None = None
+        self.t_imu_us: int | None = None
+        # alignment window
+        self.aligned = False
+        self.win_f = [0.0, 0.0, 0.0]
+        self.win_w = [0.0, 0.0, 0.0]
+        self.win_n = 0
+        self.win_us = 0
+        # attitude
+        self.q: att.Quat = (1.0, 0.0, 0.0, 0.0)
+        self.b: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self.P = np.zeros((6, 6))
+        # history ring and its accumulator
+        self.hist: deque[HistEntry] = deque(maxlen=self.hist_len)
+        self.acc_f = [0.0, 0.0, 0.0]
+        self.acc_n = 0
+        self.acc_us = 0
+        self.acc_sat = False
+        # GPS / CS
+        self.home: tuple[int, int, int] | None = None
+        self.g = cfg.gravity_mps2 if cfg.gravity_mps2 > 0.0 else G_DEFAULT
+        self.cs = Cs3(cfg.cs_h, cfg.cs_v)
+        self.t_lastfix_us: int | None = None  # == t_cs
+        self.prev_vel: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+        self.prev_has_vel = (False, False, False)
+        self.a_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        # observation timers
+        self.t_grav_us = 0  # last lost-GPS roll/pitch attempt
+        self.t_mag_us: int | None = None  # last magnetometer observation attempt
+        self.t_yaw_us: int | None = None  # IMU time of the last yaw observation made
+        # reports and flags
+        self.rp_T = math.nan
+        self.gps_T = [math.nan, math.nan, math.nan]
+        self.n_grav_made = 0
+        self.n_grav_skipped = 0
+        self.n_yaw_made = 0
+        self.grav_skipped = False
+        self.hist_miss = False
+        self.saturated_seen = False
+
+    # ----------------------------------------------------------------------------------
+    # IMU step
+    # ----------------------------------------------------------------------------------
+    def imu(self, t_us: int, gyro_rps: Any, accel_mps2: Any) -> None:
+        """IMU step (ALGORITHMS.md 8). Raises NonFiniteError, TimeBackwardsError, BadDtError."""
+        t_us = int(t_us)
+        w = _finite3(gyro_rps)
+        f = _finite3(accel_mps2)
+        if not all(math.isfinite(v) for v in w + f):  # step 1
+            raise NonFiniteError("IMU sample not finite")
+        if self.t_imu_us is None:  # step 2
+            self.t_imu_us = self.t_first_us = t_us
+            return
+        if t_us <= self.t_imu_us:  # step 3
+            raise TimeBackwardsError(f"IMU time {t_us} <= {self.t_imu_us}")
+        dt_us = t_us - self.t_imu_us
+        dt = dt_us * 1e-6
+        if dt > self.cfg.imu_dt_max_s:
+            self.t_imu_us = t_us  # re-anchor, nothing else
+            raise BadDtError(f"IMU dt {dt} s > {self.cfg.imu_dt_max_s}")
+        sat = max(abs(f[0]), abs(f[1]), abs(f[2])) >= self.cfg.accel_sat_mps2
+        if not self.aligned:  # step 4
+            self._align_step(t_us, dt_us, w, f)
+            self.saturated_seen = self.saturated_seen or sat
+            self.t_imu_us = t_us
+            return
+        q, P = att.propagate(self.q, self.b, self.P, w, dt, self.cfg.att)  # step 5 (may raise)
+        self.q, self.P = q, P
+        self.t_imu_us = t_us
+        self.saturated_seen = self.saturated_seen or sat
+        self._hist_accumulate(t_us, dt_us, f, sat)
+        if self._gps_lost(t_us) and t_us - self.t_grav_us >= self._grav_period_us:  # step 6
+            self._lost_gps_observation(t_us)
+
+    def _align_step(self, t_us: int, dt_us: int, w: tuple, f: tuple) -> None:
+        """ALGORITHMS.md 8, IMU step 4."""
+        cfg = self.cfg
+        wn = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
+        fn = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
+        still = wn <= cfg.init_gyro_still_rps and abs(fn - self.g) <= cfg.init_acc_still_mps2
+        if still:  # added to the window
+            for i in range(3):
+                self.win_f[i] += f[i]
+                self.win_w[i] += w[i]
+            self.win_n += 1
+            self.win_us += dt_us
+        else:  # empties the window and is not added; the timer keeps running
+            self.win_f = [0.0, 0.0, 0.0]
+            self.win_w = [0.0, 0.0, 0.0]
+            self.win_n = 0
+            self.win_us = 0
+        assert self.t_first_us is not None
+        if self.win_n > 0 and self.win_us >= self._init_still_us:
+            n = self.win_n
+            f_mean = (self.win_f[0] / n, self.win_f[1] / n, self.win_f[2] / n)
+            b = (self.win_w[0] / n, self.win_w[1] / n, self.win_w[2] / n)
+        elif t_us - self.t_first_us >= self._init_timeout_us:
+            n = self.win_n
+            f_mean = (self.win_f[0] / n, self.win_f[1] / n, self.win_f[2] / n) if n > 0 else f
+            b = (0.0, 0.0, 0.0)
+        else:
+            return
+        fx, fy, fz = f_mean
+        phi = math.atan2(-fy, -fz)
+        theta = math.atan2(fx, math.sqrt(fy * fy + fz * fz))
+        self.q = att.quat_from_euler(phi, theta, 0.0)
+        self.b = b
+        self.P = att.initial_covariance(cfg.att)
+        self.aligned = True
+        self.t_grav_us = t_us  # the no-GPS observation timer starts at the aligning sample
+
+    # ----------------------------------------------------------------------------------
+    # History ring (ALGORITHMS.md 8)
+    # ----------------------------------------------------------------------------------
+    def _hist_accumulate(self, t_us: int, dt_us: int, f: tuple, sat: bool) -> None:
+        self.acc_f[0] += f[0]
+        self.acc_f[1] += f[1]
+        self.acc_f[2] += f[2]
+        self.acc_n += 1
+        self.acc_us += dt_us
+        self.acc_sat = self.acc_sat or sat
+        if self.acc_us >= MCA_HIST_DT_US:
+            n = self.acc_n
+            mean = (self.acc_f[0] / n, self.acc_f[1] / n, self.acc_f[2] / n)
+            self.hist.append(HistEntry(t_us, mean, self.q, self.acc_sat))
+            self.acc_f = [0.0, 0.0, 0.0]
+            self.acc_n = 0
+            self.acc_us = 0
+            self.acc_sat = False
+
+    def hist_lookup(self, t_us: int) -> HistEntry | None:
+        """Entry with the smallest |t_entry - t| (ties: the older); None when t is older than all."""
+        if not self.hist or t_us < self.hist[0].t_us:
+            return None
+        best = self.hist[0]
+        best_d = abs(best.t_us - t_us)
+        for e in self.hist:  # oldest first: strict < keeps the older on ties
+            d = abs(e.t_us - t_us)
+            if d < best_d:
+                best, best_d = e, d
+        return best
+
+    # ----------------------------------------------------------------------------------
+    # Observations
+    # ----------------------------------------------------------------------------------
+    def _gps_lost(self, t_us: int) -> bool:
+        return self.t_lastfix_us is None or t_us - self.t_lastfix_us > self._gps_timeout_us
+
+    def _grav_skip(self, hist_miss: bool = False) -> None:
+        self.n_grav_skipped += 1
+        self.grav_skipped = True
+        self.hist_miss = hist_miss
+
+    def _roll_pitch(
+        self, entry: HistEntry | None, a_n: tuple[float, float, float], r_acc: float, q_d: att.Quat | None
+    ) -> None:
+        """Roll/pitch observation from a history entry (None: a history miss).
+
+        q_d None: the entry's q (delayed); otherwise the given attitude (lost-GPS mode: q).
+        """
+        if entry is None or entry.saturated:
+            self._grav_skip(hist_miss=entry is None)
+            return
+        try:
+            res = att.roll_pitch_update(
+                self.q,
+                self.b,
+                self.P,
+                np.array(entry.f_b),
+                np.array(a_n),
+                entry.q if q_d is None else q_d,
+                r_acc,
+                self.g,
+                self.cfg.att,
+            )
+        except McaError:  # choice 4
+            self._grav_skip()
+            return
+        if not res.made:
+            self._grav_skip()
+            return
+        self.q, self.b, self.P = res.q, res.b, res.P
+        self.rp_T = res.T
+        self.n_grav_made += 1
+        self.grav_skipped = False
+        self.hist_miss = False
+
+    def _yaw(self, psi_m: float, sigma2: float, q_d: att.Quat) -> None:
+        try:
+            res = att.yaw_update(self.q, self.b, self.P, psi_m, sigma2, q_d, self.cfg.att)
+        except McaError:  # choice 4
+            return
+        if res.made:
+            self.q, self.b, self.P = res.q, res.b, res.P
+            self.n_yaw_made += 1
+            self.t_yaw_us = self.t_imu_us
+
+    def _lost_gps_observation(self, t_us: int) -> None:
+        """ALGORITHMS.md 8, IMU step 6."""
+        cfg = self.cfg
+        self.t_grav_us = t_us
+        a_n = (0.0, 0.0, 0.0)
+        if cfg.comp_mode == COMP_CS and self.t_lastfix_us is not None:
+            age_s = (t_us - self.t_lastfix_us) * 1e-6
+            taus = (cfg.cs_h.tau_a_s, cfg.cs_h.tau_a_s, cfg.cs_v.tau_a_s)
+            a_n = tuple(  # type: ignore[assignment]
+                a * math.exp(-age_s / tau) if age_s <= 4.0 * tau else 0.0
+                for a, tau in zip(self.a_last, taus, strict=True)
+            )
+        entry = self.hist[-1] if self.hist else None
+        self._roll_pitch(entry, a_n, cfg.nogps_rp_var_rad2, self.q)
+
+    # ----------------------------------------------------------------------------------
+    # GPS step
+    # ----------------------------------------------------------------------------------
+    def _parse_fix(self, fix: Any) -> _Fix:
+        cfg = self.cfg
+        try:
+            flags = int(_get(fix, "flags"))
+            fx = _Fix(
+                t_us=int(_get(fix, "t_us")),
+                lat_e7=int(_get(fix, "lat_e7")),
+                lon_e7=int(_get(fix, "lon_e7")),
+                alt_mm=int(_get(fix, "alt_mm")),
+                vel=_finite3(_get(fix, "vel_ned_mps")),
+                h_acc=_accuracy(_get(fix, "h_acc_m"), cfg.gps_pos_sigma_m),
+                v_acc=_accuracy(_get(fix, "v_acc_m"), cfg.gps_alt_sigma_m),
+                s_acc=_accuracy(_get(fix, "s_acc_mps"), cfg.gps_vel_sigma_mps),
+                fix_type=int(_get(fix, "fix_type")),
+                flags=flags,
+            )
+        except (TypeError, ValueError, KeyError, AttributeError, IndexError) as exc:
+            raise BadArgError(f"not a GNSS fix: {exc}") from exc
+        return fx
+
+    def gps(self, fix: Any) -> None:
+        """GPS step (ALGORITHMS.md 8). ``fix``: a GnssFix or a GNSS_DTYPE record.
+
+        Raises BadArgError (fix_type < 2), RangeError, NonFiniteError (velocity flagged present
+        but not finite), TimeBackwardsError, and whatever the CS update raises; state unchanged.
+        """
+        cfg = self.cfg
+        fx = self._parse_fix(fix)
+        has_ne = bool(fx.flags & GNSS_HAS_VEL_NE)
+        has_d = bool(fx.flags & GNSS_HAS_VEL_D)
+        has_alt = bool(fx.flags & GNSS_HAS_ALT)
+        # Step 1: validation, nothing changes on error.
+        if fx.fix_type < 2:
+            raise BadArgError(f"fix_type {fx.fix_type} < 2")
+        geo.check_geodetic(fx.lat_e7, fx.lon_e7, fx.alt_mm if has_alt else None)
+        if (has_ne and not (math.isfinite(fx.vel[0]) and math.isfinite(fx.vel[1]))) or (
+            has_d and not math.isfinite(fx.vel[2])
+        ):
+            raise NonFiniteError("velocity flagged present is not finite")
+        if self.t_lastfix_us is not None and fx.t_us <= self.t_lastfix_us:
+            raise TimeBackwardsError(f"fix time {fx.t_us} <= {self.t_lastfix_us}")
+        has_vel = (has_ne, has_ne, has_d)
+        v0 = tuple(v if h else 0.0 for v, h in zip(fx.vel, has_vel, strict=True))
+
+        # Step 2: first fix sets home.
+        if self.home is None:
+            home_alt = fx.alt_mm if has_alt else 0
+            self.cs.init((0.0, 0.0, 0.0), v0)
+            self.home = (fx.lat_e7, fx.lon_e7, home_alt)
+            if cfg.gravity_mps2 == 0.0:
+                self.g = geo.normal_gravity_e7(fx.lat_e7, home_alt)
+            self.a_last = (0.0, 0.0, 0.0)
+            self._remember_fix(fx, has_vel)
+            return
+
+        # Step 3: NED, CS predict (or re-initialise).
+        lat0, lon0, alt0 = self.home
+        ned = geo.ned_from_home(fx.lat_e7, fx.lon_e7, fx.alt_mm if has_alt else alt0, lat0, lon0, alt0)
+        assert self.t_lastfix_us is not None
+        T = (fx.t_us - self.t_lastfix_us) * 1e-6
+        if T > min(cfg.cs_h.dt_max_s, cfg.cs_v.dt_max_s):
+            # Re-initialise instead; compensation acceleration 0; steps 4-6 skipped.
+            self.cs.init(ned, v0)
+            self.a_last = (0.0, 0.0, 0.0)
+            self._remember_fix(fx, has_vel)
+            return
+        saved = [(ax.x, ax.P, ax.s2, ax.initialised) for ax in self.cs.axes]
+        try:
+            self.cs.predict(T)
+            # Step 4: CS update.
+            vel_mask = MASK_VEL if has_ne else 0
+            d_mask = (MASK_POS if (has_alt and fx.fix_type >= 3) else 0) | (MASK_VEL if has_d else 0)
+            reports = self.cs.update(
+                z_p=ned,
+                z_v=fx.vel,
+                r_p=(fx.h_acc**2, fx.h_acc**2, fx.v_acc**2),
+                r_v=(fx.s_acc**2,) * 3,
+                mask=(MASK_POS | vel_mask, MASK_POS | vel_mask, d_mask),
+            )
+        except McaError:
+            for ax, (x, P, s2, ini) in zip(self.cs.axes, saved, strict=True):
+                ax.x, ax.P, ax.s2, ax.initialised = x, P, s2, ini
+            raise
+        # From here on nothing raises.
+        for i, rep in enumerate(reports):
+            if rep is not None:
+                self.gps_T[i] = rep.T
+        a_cs = tuple(float(ax.x[2]) for ax in self.cs.axes)
+
+        # Step 5: compensation acceleration.
+        usable = True
+        if cfg.comp_mode == COMP_CS:
+            a_n: tuple[float, float, float] = a_cs  # type: ignore[assignment]
+            Pn, Pe = self.cs.axes[0].P[2, 2], self.cs.axes[1].P[2, 2]
+            r_acc = float(Pn + Pe) / (2.0 * self.g**2)
+        elif cfg.comp_mode == COMP_GPS_DIFF:
+            dt_fix = T
+            usable = fx.t_us - self.t_lastfix_us <= self._gps_timeout_us
+            a_n = tuple(  # type: ignore[assignment]
+                (v - vp) / dt_fix if (h and hp) else 0.0
+                for v, vp, h, hp in zip(fx.vel, self.prev_vel, has_vel, self.prev_has_vel, strict=True)
+            )
+            r_acc = 2.0 * fx.s_acc**2 / (dt_fix**2 * self.g**2)
+        else:
+            a_n, r_acc = (0.0, 0.0, 0.0), 0.0
+
+        # Step 6: observations.
+        if self.aligned:
+            if not usable:
+                self._grav_skip()
+            else:
+                if cfg.comp_mode == COMP_CS:
+                    entry = self.hist_lookup(fx.t_us - self._cs_lag_us)
+                elif cfg.comp_mode == COMP_GPS_DIFF:
+                    entry = self.hist_lookup(fx.t_us)
+                else:
+                    entry = self.hist[-1] if self.hist else None
+                self._roll_pitch(entry, a_n, r_acc, None)
+            if cfg.yaw_source == YAW_COG and has_ne:
+                self._course_observation(fx)
+
+        # Step 7.
+        self.a_last = a_cs  # type: ignore[assignment]
+        self._remember_fix(fx, has_vel)
+
+    def _remember_fix(self, fx: _Fix, has_vel: tuple[bool, bool, bool]) -> None:
+        self.t_lastfix_us = fx.t_us
+        self.prev_vel = fx.vel
+        self.prev_has_vel = has_vel
+
+    def _course_observation(self, fx: _Fix) -> None:
+        """Course over ground (ALGORITHMS.md 7), observation time t_fix (choice 6)."""
+        cfg = self.cfg
+        vn, ve = fx.vel[0], fx.vel[1]
+        speed = math.hypot(vn, ve)
+        if speed < cfg.cog_min_speed_mps:
+            return
+        entry = self.hist_lookup(fx.t_us)
+        if entry is None:
+            return
+        psi_m = math.atan2(ve, vn)
+        sigma2 = cfg.cog_sigma0_rad**2 + (fx.s_acc / speed) ** 2
+        self._yaw(psi_m, sigma2, entry.q)
+
+    # ----------------------------------------------------------------------------------
+    # Magnetometer step
+    # ----------------------------------------------------------------------------------
+    def mag(self, t_us: int, mag_b: Any) -> None:
+        """Magnetometer step (ALGORITHMS.md 8). Raises NonFiniteError."""
+        m = _finite3(mag_b)
+        if not all(math.isfinite(v) for v in m):
+            raise NonFiniteError("magnetometer sample not finite")
+        cfg = self.cfg
+        if cfg.yaw_source != YAW_MAG or not self.aligned:
+            return
+        t_us = int(t_us)
+        if self.t_mag_us is not None and t_us - self.t_mag_us < self._grav_period_us:
+            return
+        if m[0] == 0.0 and m[1] == 0.0 and m[2] == 0.0:
+            return
+        self.t_mag_us = t_us
+        psi_m = att.mag_heading(self.q, np.array(m), cfg.mag_declination_rad)
+        self._yaw(psi_m, cfg.mag_yaw_sigma_rad**2, self.q)
+
+    # ----------------------------------------------------------------------------------
+    # Output
+    # ----------------------------------------------------------------------------------
+    def flags(self) -> int:
+        f = 0
+        if self.aligned:
+            f |= FLAG_ALIGNED
+        if self.home is not None:
+            f |= FLAG_HOME_SET
+        if self.t_imu_us is None or self._gps_lost(self.t_imu_us):
+            f |= FLAG_GPS_LOST
+        if (
+            self.cfg.yaw_source == YAW_NONE
+            or self.t_yaw_us is None
+            or self.t_imu_us is None
+            or self.t_imu_us - self.t_yaw_us > YAW_UNOBSERVED_US
+        ):
+            f |= FLAG_YAW_UNOBSERVED
+        if self.grav_skipped:
+            f |= FLAG_GRAV_SKIPPED
+        if self.saturated_seen:
+            f |= FLAG_SATURATED
+        if self.hist_miss:
+            f |= FLAG_HIST_MISS
+        return f
+
+    def _cs_extrapolated(self) -> tuple[list[float], list[float], list[float]]:
+        """CS mean carried to the newest IMU time with constant acceleration."""
+        if self.t_lastfix_us is None or self.t_imu_us is None:
+            tau = 0.0
+        else:
+            tau = (self.t_imu_us - self.t_lastfix_us) * 1e-6
+        pos, vel, acc = [], [], []
+        for ax in self.cs.axes:
+            p, v, a = float(ax.x[0]), float(ax.x[1]), float(ax.x[2])
+            pos.append(p + v * tau + 0.5 * a * tau * tau)
+            vel.append(v + a * tau)
+            acc.append(a)
+        return pos, vel, acc
+
+    def output(self) -> NavOutput:
+        """The output record (ALGORITHMS.md 8, output)."""
+        pos, vel, acc = self._cs_extrapolated()
+        return NavOutput(
+            t_us=-1 if self.t_imu_us is None else self.t_imu_us,
+            q=np.array(self.q),
+            euler=np.array(att.euler_from_quat(self.q)),
+            gyro_bias=np.array(self.b),
+            pos_ned=np.array(pos),
+            vel_ned=np.array(vel),
+            acc_ned=np.array(acc),
+            att_P_diag=np.diag(self.P).copy(),
+            cs_P_diag=np.concatenate([np.diag(ax.P)[:3] for ax in self.cs.axes]),
+            rp_T=self.rp_T,
+            gps_T=np.array(self.gps_T),
+            flags=self.flags(),
+            n_grav_made=self.n_grav_made,
+            n_grav_skipped=self.n_grav_skipped,
+            n_yaw_made=self.n_yaw_made,
+        )
+
+    def copy(self) -> Nav:
+        """A deep copy (independent state)."""
+        return copy.deepcopy(self)
+
+
+# --------------------------------------------------------------------------------------
+# Batch replay (ALGORITHMS.md 9)
+# --------------------------------------------------------------------------------------
+
+_KIND_IMU, _KIND_GPS, _KIND_MAG = 0, 1, 2
+
+
+def replay_order(recording: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """(kind, index) of every event in replay order: by time (IMU t_us, fix t_rx_us, mag t_us);
+    at equal times IMU, GPS, magnetometer; within a kind, recording order."""
+    imu, gnss, mag = recording.imu, recording.gnss, recording.mag
+    mag = np.zeros(0, dtype=[("t_us", np.int64)]) if mag is None else mag
+    t = np.concatenate(
+        [imu["t_us"].astype(np.int64), gnss["t_rx_us"].astype(np.int64), mag["t_us"].astype(np.int64)]
+    )
+    kind = np.concatenate(
+        [np.full(len(imu), _KIND_IMU), np.full(len(gnss), _KIND_GPS), np.full(len(mag), _KIND_MAG)]
+    )
+    idx = np.concatenate([np.arange(len(imu)), np.arange(len(gnss)), np.arange(len(mag))])
+    order = np.lexsort((idx, kind, t))
+    return kind[order], idx[order]
+
+
+def run(recording: Recording, cfg: NavConfig | None = None) -> dict[str, np.ndarray]:
+    """Replay a recording through a fresh :class:`Nav` (ALGORITHMS.md 9).
+
+    Returns a dict of arrays, one row per IMU sample (recorded after its step, whatever its
+    status): ``t_us``, ``q`` (n, 4), ``euler`` (n, 3: roll, pitch, yaw), ``gyro_bias``,
+    ``pos_ned``, ``vel_ned``, ``acc_ned`` (n, 3), ``att_P_diag`` (n, 6), ``cs_P_diag`` (n, 9:
+    N(p, v, a), E(p, v, a), D(p, v, a)), ``rp_T`` (n,), ``gps_T`` (n, 3), ``flags`` (n,
+    uint32), ``n_grav_made``, ``n_grav_skipped``, ``n_yaw_made`` (n,); and the per-event
+    status codes ``imu_status`` (n,), ``gps_status`` (n_fix,), ``mag_status`` (n_mag,)
+    (0 OK, otherwise STATUS_CODES).
+    """
+    nav = Nav(cfg)
+    imu, gnss = recording.imu, recording.gnss
+    mag = recording.mag if recording.mag is not None else np.zeros(0, dtype=[("t_us", np.int64)])
+    n = len(imu)
+    out: dict[str, np.ndarray] = {
+        "t_us": np.zeros(n, np.int64),
+        "q": np.zeros((n, 4)),
+        "euler": np.zeros((n, 3)),
+        "gyro_bias": np.zeros((n, 3)),
+        "pos_ned": np.zeros((n, 3)),
+        "vel_ned": np.zeros((n, 3)),
+        "acc_ned": np.zeros((n, 3)),
+        "att_P_diag": np.zeros((n, 6)),
+        "cs_P_diag": np.zeros((n, 9)),
+        "rp_T": np.zeros(n),
+        "gps_T": np.zeros((n, 3)),
+        "flags": np.zeros(n, np.uint32),
+        "n_grav_made": np.zeros(n, np.int64),
+        "n_grav_skipped": np.zeros(n, np.int64),
+        "n_yaw_made": np.zeros(n, np.int64),
+        "imu_status": np.zeros(n, np.int32),
+        "gps_status": np.zeros(len(gnss), np.int32),
+        "mag_status": np.zeros(len(mag), np.int32),
+    }
+    kinds, idxs = replay_order(recording)
+    imu_t = imu["t_us"].tolist()
+    imu_w = imu["gyro_rps"].tolist()
+    imu_f = imu["accel_mps2"].tolist()
+    mag_t = mag["t_us"].tolist() if len(mag) else []
+    mag_m = mag["mag_b"].tolist() if len(mag) else []
+    o_t, o_q, o_eul, o_b = out["t_us"], out["q"], out["euler"], out["gyro_bias"]
+    o_p, o_v, o_a = out["pos_ned"], out["vel_ned"], out["acc_ned"]
+    o_Pa, o_Pc, o_rpT, o_gT = out["att_P_diag"], out["cs_P_diag"], out["rp_T"], out["gps_T"]
+    o_fl, o_gm, o_gs, o_ym = out["flags"], out["n_grav_made"], out["n_grav_skipped"], out["n_yaw_made"]
+    o_st = out["imu_status"]
+
+    # The CS covariance only changes at a GPS event: cache its diagonal between them.
+    cs_pdiag: list[float] | None = None
+    for kind, i in zip(kinds.tolist(), idxs.tolist(), strict=True):
+        if kind == _KIND_IMU:
+            try:
+                nav.imu(imu_t[i], imu_w[i], imu_f[i])
+            except McaError as exc:
+                o_st[i] = status_code(exc)
+            if cs_pdiag is None:
+                cs_pdiag = [float(ax.P[k, k]) for ax in nav.cs.axes for k in range(3)]
+            o_t[i] = -1 if nav.t_imu_us is None else nav.t_imu_us
+            o_q[i] = nav.q
+            o_eul[i] = att.euler_from_quat(nav.q)
+            o_b[i] = nav.b
+            o_p[i], o_v[i], o_a[i] = nav._cs_extrapolated()
+            o_Pc[i] = cs_pdiag
+            o_Pa[i] = nav.P.diagonal()
+            o_rpT[i] = nav.rp_T
+            o_gT[i] = nav.gps_T
+            o_fl[i] = nav.flags()
+            o_gm[i] = nav.n_grav_made
+            o_gs[i] = nav.n_grav_skipped
+            o_ym[i] = nav.n_yaw_made
+        elif kind == _KIND_GPS:
+            try:
+                nav.gps(gnss[i])
+            except McaError as exc:
+                out["gps_status"][i] = status_code(exc)
+            cs_pdiag = None
+        else:
+            try:
+                nav.mag(mag_t[i], mag_m[i])
+            except McaError as exc:
+                out["mag_status"][i] = status_code(exc)
+    return out

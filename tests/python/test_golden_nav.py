@@ -1,0 +1,686 @@
+"""Golden navigation model (python/mcahrs/golden/{geo,attitude,nav}.py) against independent
+references: explicit ECEF geometry, known gravity values, analytic rotations (scipy), and
+synthetic trajectories with known truth."""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import replace
+
+import numpy as np
+import pymap3d
+import pytest
+from scipy.spatial.transform import Rotation
+
+from mcahrs.errors import (
+    BadArgError,
+    BadConfigError,
+    BadDtError,
+    NonFiniteError,
+    RangeError,
+    TimeBackwardsError,
+)
+from mcahrs.golden import attitude as att
+from mcahrs.golden import geo
+from mcahrs.golden import nav as gnav
+from mcahrs.samples import (
+    GNSS_DTYPE,
+    GNSS_HAS_ALT,
+    GNSS_HAS_VEL_D,
+    GNSS_HAS_VEL_NE,
+    IMU_DTYPE,
+    MAG_DTYPE,
+    GnssFix,
+    Recording,
+)
+
+G = 9.80665
+HOME_E7 = (int(22.3e7), int(114.1e7), 50_000)  # lat, lon (1e-7 deg), alt (mm)
+
+
+# --------------------------------------------------------------------------------------
+# Geodetic -> NED and gravity (ALGORITHMS.md 6)
+# --------------------------------------------------------------------------------------
+
+
+def _ecef(lat_rad: float, lon_rad: float, h: float) -> np.ndarray:
+    """WGS84 geodetic -> ECEF, written out here independently of mcahrs and pymap3d."""
+    a, f = 6378137.0, 1.0 / 298.257223563
+    e2 = f * (2.0 - f)
+    n = a / math.sqrt(1.0 - e2 * math.sin(lat_rad) ** 2)
+    return np.array(
+        [
+            (n + h) * math.cos(lat_rad) * math.cos(lon_rad),
+            (n + h) * math.cos(lat_rad) * math.sin(lon_rad),
+            (n * (1.0 - e2) + h) * math.sin(lat_rad),
+        ]
+    )
+
+
+def _ned_explicit(lat_e7: int, lon_e7: int, alt_mm: int, home: tuple[int, int, int]) -> np.ndarray:
+    k = 1e-7 * math.pi / 180.0
+    lat0, lon0 = home[0] * k, home[1] * k
+    d = _ecef(lat_e7 * k, lon_e7 * k, alt_mm * 1e-3) - _ecef(lat0, lon0, home[2] * 1e-3)
+    sl, cl, so, co = math.sin(lat0), math.cos(lat0), math.sin(lon0), math.cos(lon0)
+    r_en = np.array([[-sl * co, -sl * so, cl], [-so, co, 0.0], [-cl * co, -cl * so, -sl]])  # ECEF -> NED
+    return r_en @ d
+
+
+def _random_points(
+    rng: np.random.Generator, home: tuple[int, int, int], n: int
+) -> list[tuple[int, int, int]]:
+    """Points within ~20 km horizontally and -1 .. +3 km vertically of home."""
+    lat0 = home[0] * 1e-7
+    pts = []
+    for _ in range(n):
+        dn, de = rng.uniform(-14_000.0, 14_000.0, 2)  # |(dn, de)| <= 19.8 km
+        dlat = dn / 111_000.0
+        dlon = de / (111_000.0 * max(math.cos(math.radians(lat0)), 0.05))
+        lat = int(np.clip(home[0] + round(dlat * 1e7), -900_000_000, 900_000_000))
+        lon = home[1] + round(dlon * 1e7)
+        lon = (lon + 1_800_000_000) % 3_600_000_000 - 1_800_000_000
+        alt = home[2] + int(rng.integers(-1_000_000, 3_000_000))
+        pts.append((lat, lon, max(alt, geo.ALT_MIN_MM)))
+    return pts
+
+
+_HOMES = [
+    (0, 0, 0),
+    HOME_E7,
+    (int(47.6e7), int(-122.3e7), 120_000),
+    (int(-33.9e7), int(151.2e7), 10_000),
+    (int(78.2e7), int(15.6e7), 500_000),
+    (int(-60.5e7), int(179.99e7), 0),  # lon wraps across the antimeridian in the sample
+]
+
+
+@pytest.mark.parametrize("home", _HOMES)
+def test_geo_ned_matches_explicit_ecef_within_1mm_over_20km(home: tuple[int, int, int]) -> None:
+    rng = np.random.default_rng(abs(home[0]) + 7)
+    for lat, lon, alt in _random_points(rng, home, 200):
+        ned = geo.ned_from_home(lat, lon, alt, *home)
+        ref = _ned_explicit(lat, lon, alt, home)
+        # 1 mm is the requirement; float64 ECEF differences are good to ~1e-8 m here.
+        assert np.max(np.abs(ned - ref)) < 1e-3
+        # The spec's cancellation-free closed form (what the float32 C core implements).
+        closed = geo.ned_from_home_closed_form(lat, lon, alt, *home)
+        assert np.max(np.abs(closed - ref)) < 1e-3
+
+
+@pytest.mark.parametrize("home", _HOMES)
+def test_geo_ned_round_trips_through_pymap3d_ned2geodetic(home: tuple[int, int, int]) -> None:
+    rng = np.random.default_rng(abs(home[1]) + 3)
+    for lat, lon, alt in _random_points(rng, home, 100):
+        n, e, d = geo.ned_from_home(lat, lon, alt, *home)
+        lat1, lon1, h1 = pymap3d.ned2geodetic(n, e, d, home[0] * 1e-7, home[1] * 1e-7, home[2] * 1e-3)
+        dlon = (lon1 - lon * 1e-7 + 180.0) % 360.0 - 180.0
+        # Back to metres (1 deg of latitude ~ 111.3 km): round trip within 1 mm.
+        assert abs(lat1 - lat * 1e-7) * 111_320.0 < 1e-3
+        assert abs(dlon) * 111_320.0 * math.cos(math.radians(lat * 1e-7)) < 1e-3
+        assert abs(h1 - alt * 1e-3) < 1e-3
+
+
+def test_geo_range_checks_raise_range_error() -> None:
+    ok = (0, 0, 0)
+    for bad in [(900_000_001, 0, 0), (-900_000_001, 0, 0), (0, 1_800_000_001, 0), (0, -1_800_000_001, 0),
+                (0, 0, -1_000_001), (0, 0, 100_000_001)]:  # fmt: skip
+        with pytest.raises(RangeError):
+            geo.ned_from_home(*bad, *ok)
+        with pytest.raises(RangeError):
+            geo.ned_from_home(*ok, *bad)
+    geo.ned_from_home(900_000_000, 1_800_000_000, 100_000_000, *ok)  # limits are inclusive
+
+
+def test_normal_gravity_known_values() -> None:
+    # WGS84 normal gravity: 9.7803 m/s^2 at the equator, 9.8322 at the poles (1e-3 as asked).
+    assert geo.normal_gravity(0.0, 0.0) == pytest.approx(9.780, abs=1e-3)
+    assert geo.normal_gravity(math.pi / 2, 0.0) == pytest.approx(9.832, abs=1e-3)
+    assert geo.normal_gravity(-math.pi / 2, 0.0) == pytest.approx(9.832, abs=1e-3)
+    # Free-air gradient 3.086e-6 /s^2 per metre.
+    assert geo.normal_gravity(0.7, 0.0) - geo.normal_gravity(0.7, 1000.0) == pytest.approx(3.086e-3, rel=1e-9)
+    assert geo.normal_gravity_e7(450_000_000, 0) == pytest.approx(9.8062, abs=1e-4)
+
+
+# --------------------------------------------------------------------------------------
+# Attitude EKF (ALGORITHMS.md 7)
+# --------------------------------------------------------------------------------------
+
+
+def _scipy_dcm(q: att.Quat) -> np.ndarray:
+    w, x, y, z = q
+    return Rotation.from_quat([x, y, z, w]).as_matrix()  # scipy: scalar last
+
+
+def test_euler_and_dcm_match_scipy_zyx() -> None:
+    rng = np.random.default_rng(5)
+    for _ in range(100):
+        phi, psi = rng.uniform(-3.1, 3.1, 2)
+        theta = rng.uniform(-1.5, 1.5)
+        q = att.quat_from_euler(phi, theta, psi)
+        ref = Rotation.from_euler("ZYX", [psi, theta, phi]).as_matrix()  # intrinsic Z-Y-X, body -> NED
+        np.testing.assert_allclose(att.dcm_from_quat(q), ref, atol=1e-14)
+        np.testing.assert_allclose(_scipy_dcm(q), ref, atol=1e-14)
+        np.testing.assert_allclose(att.euler_from_quat(q), (phi, theta, psi), atol=1e-9)
+
+
+def test_attitude_propagation_constant_rate_equals_analytic_rotation() -> None:
+    cfg = att.AttConfig()
+    q0 = att.quat_from_euler(0.3, -0.2, 1.0)
+    w = np.array([0.4, -0.7, 1.1])  # rad/s, body
+    bias = (0.01, -0.02, 0.03)
+    dt, n = 0.0025, 4000  # 10 s at 400 Hz: 14 rad of rotation
+    q, P = q0, np.eye(6) * 1e-4
+    gyro = tuple(w + bias)
+    for _ in range(n):
+        q, P = att.propagate(q, bias, P, gyro, dt, cfg)
+    # Body-axis constant rate: C_nb(t) = C_nb(0) exp([w x] t) exactly.
+    ref = _scipy_dcm(q0) @ Rotation.from_rotvec(w * dt * n).as_matrix()
+    # 4000 normalised products: rounding accumulates to ~1e-12.
+    np.testing.assert_allclose(att.dcm_from_quat(q), ref, atol=1e-11)
+    # Covariance: symmetric, PD, and the attitude block grew by at least the gyro noise.
+    assert np.array_equal(P, P.T)
+    np.linalg.cholesky(P)
+    assert np.trace(P[:3, :3]) > 3e-4
+
+
+def test_attitude_correction_applies_body_axis_error() -> None:
+    q = att.quat_from_euler(0.1, 0.2, 0.3)
+    dx = np.array([1e-3, -2e-3, 3e-3, 1e-4, 2e-4, 3e-4])
+    q1, b1 = att.correct(q, (0.0, 0.0, 0.0), dx)
+    ref = _scipy_dcm(q) @ Rotation.from_rotvec(dx[:3]).as_matrix()
+    np.testing.assert_allclose(att.dcm_from_quat(q1), ref, atol=1e-15)
+    np.testing.assert_allclose(b1, dx[3:], atol=0)
+
+
+def test_roll_pitch_observation_jacobian_matches_finite_differences() -> None:
+    """H = [E C_D, 0] is the derivative of (phi, theta)(q_d (x) exp(C_D dtheta)) w.r.t. dtheta."""
+    q = att.quat_from_euler(0.4, -0.3, 2.0)
+    q_d = att.quat_from_euler(0.35, -0.25, 1.9)
+    phi_d, theta_d, _ = att.euler_from_quat(q_d)
+    H = att.euler_rate_rows(phi_d, theta_d) @ att.delay_transport(q_d, q)
+    C_D = att.delay_transport(q_d, q)
+    h = 1e-6
+    num = np.zeros((2, 3))
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = h
+        qp = att.quat_mul(q_d, att.quat_exp(C_D @ e))
+        qm = att.quat_mul(q_d, att.quat_exp(-(C_D @ e)))
+        num[:, k] = (np.array(att.euler_from_quat(qp)[:2]) - np.array(att.euler_from_quat(qm)[:2])) / (2 * h)
+    np.testing.assert_allclose(H, num, atol=1e-8)  # central differences, h = 1e-6: error ~1e-10
+
+
+# --------------------------------------------------------------------------------------
+# Synthetic trajectories
+# --------------------------------------------------------------------------------------
+
+
+def _fixes(
+    t_us: np.ndarray, pos: np.ndarray, vel: np.ndarray, *, latency_us: int = 20_000,
+    h_acc: float = 0.5, v_acc: float = 1.0, s_acc: float = 0.05,
+) -> np.ndarray:  # fmt: skip
+    lat, lon, h = pymap3d.ned2geodetic(
+        pos[:, 0], pos[:, 1], pos[:, 2], HOME_E7[0] * 1e-7, HOME_E7[1] * 1e-7, HOME_E7[2] * 1e-3
+    )
+    gn = np.zeros(len(t_us), GNSS_DTYPE)
+    gn["t_us"] = t_us
+    gn["t_rx_us"] = t_us + latency_us
+    gn["lat_e7"] = np.round(np.asarray(lat) * 1e7)
+    gn["lon_e7"] = np.round(np.asarray(lon) * 1e7)
+    gn["alt_mm"] = np.round(np.asarray(h) * 1e3)
+    gn["vel_ned_mps"] = vel
+    gn["speed_mps"] = np.hypot(vel[:, 0], vel[:, 1])
+    gn["course_rad"] = np.mod(np.arctan2(vel[:, 1], vel[:, 0]), 2 * np.pi)
+    gn["h_acc_m"], gn["v_acc_m"], gn["s_acc_mps"] = h_acc, v_acc, s_acc
+    gn["fix_type"], gn["num_sv"] = 3, 12
+    gn["flags"] = GNSS_HAS_VEL_NE | GNSS_HAS_VEL_D | GNSS_HAS_ALT
+    return gn
+
+
+def _straight_accel(rate_hz: int = 200, a: float = 2.0) -> tuple[Recording, np.ndarray]:
+    """Level vehicle heading north: 3 s still, 10 s at a constant a (north), 5 s cruise.
+
+    No noise; perfect GPS at 5 Hz (20 ms latency). Returns the recording and IMU times (s).
+    """
+    t_static, t_acc, t_end = 3.0, 10.0, 18.0
+
+    def kin(ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        tt = np.clip(ts - t_static, 0.0, t_acc)
+        acc = np.where((ts > t_static) & (ts <= t_static + t_acc), a, 0.0)
+        pos = 0.5 * a * tt**2 + a * t_acc * np.clip(ts - t_static - t_acc, 0.0, None)
+        return pos, a * tt, acc
+
+    t0 = 1_000_000
+    t_rel = np.arange(0, int(t_end * 1e6) + 1, 1_000_000 // rate_hz, dtype=np.int64)
+    ts = t_rel * 1e-6
+    _, _, acc = kin(ts)
+    imu = np.zeros(len(t_rel), IMU_DTYPE)
+    imu["t_us"] = t_rel + t0
+    imu["accel_mps2"][:, 0] = acc  # f_b = C_n^b (a_n - g_n) = [a, 0, -g]
+    imu["accel_mps2"][:, 2] = -G
+    g_rel = np.arange(0, int(t_end * 1e6) + 1, 200_000, dtype=np.int64)
+    pos, vel, _ = kin(g_rel * 1e-6)
+    z = np.zeros_like(pos)
+    gn = _fixes(g_rel + t0, np.stack([pos, z, z], 1), np.stack([vel, z, z], 1))
+    return Recording("straight_accel", imu, gn), ts
+
+
+def _pitch_rms_deg(out: dict, ts: np.ndarray, t_from: float, pitch_true: np.ndarray | float = 0.0) -> float:
+    sel = ts >= t_from
+    err = np.degrees(out["euler"][sel, 1] - np.broadcast_to(pitch_true, ts.shape)[sel])
+    return float(np.sqrt(np.mean(err**2)))
+
+
+def test_cs_compensation_keeps_pitch_error_below_plain_gravity_on_straight_acceleration() -> None:
+    rec, ts = _straight_accel()
+    res = {}
+    for mode in (gnav.COMP_OFF, gnav.COMP_CS):
+        cfg = replace(gnav.NavConfig(), comp_mode=mode, gravity_mps2=G)
+        out = gnav.run(rec, cfg)
+        assert np.all(out["imu_status"] == 0) and np.all(out["gps_status"] == 0)
+        assert out["flags"][-1] & gnav.FLAG_ALIGNED
+        res[mode] = _pitch_rms_deg(out, ts, 3.0)
+    # Mode 0 reads a = 2 m/s^2 as atan(2/g) = 11.5 deg of pitch; mode 1 only sees the CS
+    # filter's lag at the start and end of the acceleration (measured ~0.6 deg).
+    assert res[gnav.COMP_OFF] > 8.0
+    assert res[gnav.COMP_CS] < 1.5
+    assert res[gnav.COMP_CS] < 0.15 * res[gnav.COMP_OFF]
+
+
+def _level_car(
+    seed: int, t_end: float = 120.0, rate_hz: int = 100, outage: tuple[float, float] | None = (55.0, 75.0)
+) -> tuple[Recording, np.ndarray]:
+    """Noisy level car: 3 s still, then a weaving path with varying speed; GPS 5 Hz with an
+    outage; magnetometer 50 Hz. Returns the recording and true yaw at the IMU samples."""
+    rng = np.random.default_rng(seed)
+    t_still = 3.0
+
+    def kin(ts: np.ndarray) -> tuple[np.ndarray, ...]:
+        tt = np.clip(ts - t_still, 0.0, None)
+        on = ts > t_still
+        w1, w2 = 2 * np.pi / 30.0, 2 * np.pi / 50.0
+        v = 8.0 * (1.0 - np.cos(w1 * tt))
+        dv = np.where(on, 8.0 * w1 * np.sin(w1 * tt), 0.0)
+        psi = 0.8 * np.sin(w2 * tt)
+        dpsi = np.where(on, 0.8 * w2 * np.cos(w2 * tt), 0.0)
+        a_n = np.stack(
+            [dv * np.cos(psi) - v * dpsi * np.sin(psi), dv * np.sin(psi) + v * dpsi * np.cos(psi)], 1
+        )
+        return v, psi, dpsi, a_n
+
+    dt_us = 1_000_000 // rate_hz
+    t_rel = np.arange(0, int(t_end * 1e6) + 1, dt_us, dtype=np.int64)
+    ts = t_rel * 1e-6
+    v, psi, dpsi, a_n = kin(ts)
+    bias = np.array([0.004, -0.003, 0.005])
+    imu = np.zeros(len(ts), IMU_DTYPE)
+    imu["t_us"] = t_rel + 1_000_000
+    imu["gyro_rps"][:, 2] = dpsi
+    imu["gyro_rps"] += bias + rng.normal(0.0, 0.003, (len(ts), 3))  # 3e-4 rad/s/sqrt(Hz) at 100 Hz
+    c, s = np.cos(psi), np.sin(psi)
+    imu["accel_mps2"][:, 0] = c * a_n[:, 0] + s * a_n[:, 1]  # C_n^b of a yaw rotation
+    imu["accel_mps2"][:, 1] = -s * a_n[:, 0] + c * a_n[:, 1]
+    imu["accel_mps2"][:, 2] = -G
+    imu["accel_mps2"] += rng.normal(0.0, 0.05, (len(ts), 3))
+    # Position: trapezoidal integral of the velocity on a fine grid (error << GPS noise).
+    fine = np.arange(0.0, t_end + 1e-9, 1e-3)
+    vf, pf, _, _ = kin(fine)
+    vn, ve = vf * np.cos(pf), vf * np.sin(pf)
+    pn = np.concatenate([[0.0], np.cumsum(0.5 * (vn[1:] + vn[:-1]) * 1e-3)])
+    pe = np.concatenate([[0.0], np.cumsum(0.5 * (ve[1:] + ve[:-1]) * 1e-3)])
+    g_rel = np.arange(0, int(t_end * 1e6) + 1, 200_000, dtype=np.int64)
+    if outage is not None:
+        g_rel = g_rel[(g_rel < outage[0] * 1e6) | (g_rel > outage[1] * 1e6)]
+    k = np.round(g_rel * 1e-6 / 1e-3).astype(int)
+    pos = np.stack([pn[k], pe[k], np.zeros(len(k))], 1) + rng.normal(0.0, [0.8, 0.8, 1.5], (len(k), 3))
+    vel = np.stack([vn[k], ve[k], np.zeros(len(k))], 1) + rng.normal(0.0, 0.05, (len(k), 3))
+    gn = _fixes(g_rel + 1_000_000, pos, vel, h_acc=0.8, v_acc=1.5, s_acc=0.05)
+    m_n = np.array([0.3, 0.0, 0.45])
+    m_t = np.arange(0, int(t_end * 1e6) + 1, 20_000, dtype=np.int64)
+    _, mpsi, _, _ = kin(m_t * 1e-6)
+    mag = np.zeros(len(m_t), MAG_DTYPE)
+    mag["t_us"] = m_t + 1_000_000
+    mag["mag_b"][:, 0] = np.cos(mpsi) * m_n[0]
+    mag["mag_b"][:, 1] = -np.sin(mpsi) * m_n[0]
+    mag["mag_b"][:, 2] = m_n[2]
+    mag["mag_b"] += rng.normal(0.0, 0.005, (len(m_t), 3))
+    return Recording("level_car", imu, gn, mag), psi
+
+
+def _check_spd(P: np.ndarray) -> None:
+    assert np.array_equal(P, P.T)  # symmetrised after every step: exactly symmetric
+    np.linalg.cholesky(P)  # raises LinAlgError unless positive definite
+    assert np.min(np.linalg.eigvalsh(P)) > 0.0
+
+
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        gnav.NavConfig(),
+        gnav.NavConfig.fixedwing(),
+        gnav.NavConfig.multirotor(),
+        replace(gnav.NavConfig(), comp_mode=gnav.COMP_GPS_DIFF),
+        replace(gnav.NavConfig(), comp_mode=gnav.COMP_OFF),
+    ],
+    ids=["ground", "fixedwing", "multirotor", "gpsdiff", "off"],
+)
+def test_covariances_stay_symmetric_positive_definite_over_long_noisy_run(cfg: gnav.NavConfig) -> None:
+    rec, psi = _level_car(seed=11)
+    nav = gnav.Nav(cfg)
+    kinds, idxs = gnav.replay_order(rec)
+    n_imu = 0
+    tilt_err, tilt_t = [], []  # level truth: roll and pitch are the errors
+    for kind, i in zip(kinds.tolist(), idxs.tolist(), strict=True):
+        if kind == 0:
+            im = rec.imu[i]
+            nav.imu(int(im["t_us"]), im["gyro_rps"], im["accel_mps2"])
+            n_imu += 1
+            if nav.aligned and n_imu % 25 == 0:
+                _check_spd(nav.P)
+                for ax in nav.cs.axes:
+                    if ax.initialised:
+                        _check_spd(ax.P)
+                tilt_err.append(att.euler_from_quat(nav.q)[:2])
+                tilt_t.append((nav.t_imu_us - 1_000_000) * 1e-6)
+        elif kind == 1:
+            nav.gps(rec.gnss[i])
+        else:
+            nav.mag(int(rec.mag[i]["t_us"]), rec.mag[i]["mag_b"])
+    out = nav.output()
+    assert out.flags & gnav.FLAG_ALIGNED and out.flags & gnav.FLAG_HOME_SET
+    assert out.n_grav_made > 400  # ~5 Hz with GPS, 10 Hz during the 20 s outage
+    tilt = np.degrees(np.array(tilt_err))
+    # Bounded, whatever the configuration (the paper's key claim): through the 20 s outage
+    # the uncompensated ~1.6 m/s^2 of maneuver alone is atan(1.6 / g) = 9.3 deg. With no yaw
+    # source and compensation on, a wrong yaw rotates the compensation and can double that
+    # (measured 16.4 deg; see test_roll_pitch_observations_leave_yaw_alone_without_yaw_source).
+    no_yaw_comp = cfg.yaw_source == gnav.YAW_NONE and cfg.comp_mode != gnav.COMP_OFF
+    assert np.all(np.isfinite(tilt)) and np.max(np.abs(tilt)) < (20.0 if no_yaw_comp else 15.0)
+    assert bool(out.flags & gnav.FLAG_YAW_UNOBSERVED) == (cfg.yaw_source == gnav.YAW_NONE)
+    if cfg.yaw_source != gnav.YAW_NONE and cfg.comp_mode != gnav.COMP_OFF:
+        # With yaw known the compensation works: measured <= 0.75 deg before the outage.
+        pre = (np.array(tilt_t) > 5.0) & (np.array(tilt_t) < 55.0)
+        assert np.max(np.abs(tilt[pre])) < 1.5
+        assert out.n_yaw_made > 50
+        yaw_err = att.wrap_pi(float(out.euler[2] - psi[-1]))
+        assert abs(math.degrees(yaw_err)) < 5.0  # COG / magnetometer hold yaw (measured <= 2.1 deg)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="spec issue reported to the lead: with no yaw source, roll/pitch corrections leak into yaw "
+    "and the z gyro bias through P correlations (yaw0 = (180 deg)^2), and the yaw error then rotates "
+    "the maneuver compensation; projecting the roll/pitch correction off the NED vertical fixes it",
+)
+def test_roll_pitch_observations_leave_yaw_alone_without_yaw_source() -> None:
+    rec, psi = _level_car(seed=11, outage=None)
+    out = gnav.run(rec, gnav.NavConfig())
+    t = (out["t_us"] - 1_000_000) * 1e-6
+    sel = t > 3.0
+    yaw_err = np.degrees(np.angle(np.exp(1j * (out["euler"][sel, 2] - psi[sel]))))
+    # True start heading 0 = the aligned yaw, the z bias is estimated while still: only the
+    # bias residue (~3e-4 rad/s over 2 min, ~2 deg) and gyro noise should move yaw. Measured
+    # as specified: 167 deg of yaw error and 14.4 deg of tilt. With the roll/pitch correction
+    # projected off the NED vertical (dtheta -= (u . dtheta) u, u = C_nb^T e_down): 7.0 deg
+    # and 0.9 deg (seeds 11-13: <= 7.0 and <= 0.9).
+    assert np.max(np.abs(yaw_err)) < 10.0
+    assert np.max(np.abs(np.degrees(out["euler"][sel, :2]))) < 1.5
+
+
+# --------------------------------------------------------------------------------------
+# Alignment (ALGORITHMS.md 8, IMU step 4)
+# --------------------------------------------------------------------------------------
+
+
+def _static_imu(nav: gnav.Nav, phi: float, theta: float, bias: tuple, n: int, t0: int = 0, dt_us: int = 5000):
+    f_b = att.dcm_from_quat(att.quat_from_euler(phi, theta, 0.7)).T @ np.array([0.0, 0.0, -G])
+    for k in range(n):
+        nav.imu(t0 + k * dt_us, bias, f_b)
+
+
+def test_static_alignment_recovers_tilt_and_gyro_bias() -> None:
+    cfg = replace(gnav.NavConfig(), gravity_mps2=G)
+    nav = gnav.Nav(cfg)
+    phi, theta = math.radians(12.0), math.radians(-8.0)
+    bias = (0.01, -0.02, 0.005)
+    _static_imu(nav, phi, theta, bias, 200)  # 199 intervals of 5 ms: not yet 1 s
+    assert not nav.aligned
+    _static_imu(nav, phi, theta, bias, 1, t0=200 * 5000)  # the 200th interval completes 1 s
+    assert nav.aligned
+    e = att.euler_from_quat(nav.q)
+    assert e[0] == pytest.approx(phi, abs=1e-12) and e[1] == pytest.approx(theta, abs=1e-12)
+    assert e[2] == pytest.approx(0.0, abs=1e-12)  # yaw 0 at alignment
+    np.testing.assert_allclose(nav.b, bias, rtol=1e-12)
+    np.testing.assert_allclose(np.diag(nav.P), np.diag(att.initial_covariance(cfg.att)))
+
+
+def test_alignment_by_timeout_uses_zero_bias() -> None:
+    cfg = replace(gnav.NavConfig(), gravity_mps2=G)
+    nav = gnav.Nav(cfg)
+    f_b = att.dcm_from_quat(att.quat_from_euler(0.1, 0.05, 0.0)).T @ np.array([0.0, 0.0, -G])
+    t = 0
+    for k in range(2000):  # a gyro spike every 0.25 s: never 1 s of still window
+        gyro = (0.5, 0.0, 0.0) if k % 50 == 25 else (0.01, 0.0, 0.0)
+        nav.imu(t, gyro, f_b)
+        t += 5000
+        if nav.aligned:
+            break
+    assert nav.aligned and t - 5000 == 5_000_000  # init_timeout_s after the first sample
+    assert nav.b == (0.0, 0.0, 0.0)
+    np.testing.assert_allclose(att.euler_from_quat(nav.q)[:2], (0.1, 0.05), atol=1e-12)
+
+
+def test_alignment_by_timeout_with_empty_window_uses_the_last_sample() -> None:
+    nav = gnav.Nav(replace(gnav.NavConfig(), gravity_mps2=G))
+    f_rot = att.dcm_from_quat(att.quat_from_euler(-0.2, 0.1, 0.0)).T @ np.array([0.0, 0.0, -G])
+    f_lvl = np.array([0.0, 0.0, -G])
+    for k in range(1000):  # rotating the whole time: never still, the window stays empty
+        nav.imu(k * 5000, (0.3, 0.0, 0.0), f_lvl)
+        assert not nav.aligned
+    nav.imu(1000 * 5000, (0.3, 0.0, 0.0), f_rot)  # 5 s after the first sample
+    assert nav.aligned and nav.b == (0.0, 0.0, 0.0)
+    np.testing.assert_allclose(att.euler_from_quat(nav.q)[:2], (-0.2, 0.1), atol=1e-12)
+
+
+# --------------------------------------------------------------------------------------
+# Bad inputs: the right exception, and the state unchanged
+# --------------------------------------------------------------------------------------
+
+
+def _assert_same(a: object, b: object, path: str = "nav", ignore: tuple[str, ...] = ()) -> None:
+    if isinstance(a, np.ndarray):
+        assert isinstance(b, np.ndarray) and a.shape == b.shape, path
+        assert np.array_equal(a, b, equal_nan=True), path
+    elif isinstance(a, float):
+        assert isinstance(b, float) and (a == b or (math.isnan(a) and math.isnan(b))), path
+    elif isinstance(a, (list, tuple)) or type(a).__name__ == "deque":
+        assert type(a) is type(b) and len(a) == len(b), path  # type: ignore[arg-type]
+        for k, (x, y) in enumerate(zip(a, b, strict=True)):  # type: ignore[call-overload]
+            _assert_same(x, y, f"{path}[{k}]", ignore)
+    elif hasattr(a, "__dict__") and not isinstance(a, type):
+        assert type(a) is type(b), path
+        keys = set(vars(a)) | set(vars(b))
+        for k in sorted(keys):
+            if f"{path}.{k}" in ignore:
+                continue
+            _assert_same(getattr(a, k), getattr(b, k), f"{path}.{k}", ignore)
+    else:
+        assert a == b, f"{path}: {a!r} != {b!r}"
+
+
+@pytest.fixture(scope="module")
+def running_nav() -> gnav.Nav:
+    """A Nav after 8 s of the straight-acceleration case: aligned, home set, CS running."""
+    rec, _ = _straight_accel()
+    nav = gnav.Nav(replace(gnav.NavConfig(), gravity_mps2=G))
+    kinds, idxs = gnav.replay_order(rec)
+    for kind, i in zip(kinds.tolist(), idxs.tolist(), strict=True):
+        if kind == 0:
+            im = rec.imu[i]
+            if im["t_us"] > 9_000_000:
+                break
+            nav.imu(int(im["t_us"]), im["gyro_rps"], im["accel_mps2"])
+        else:
+            nav.gps(rec.gnss[i])
+    assert nav.aligned and nav.home is not None and nav.n_grav_made > 10
+    return nav
+
+
+def _good_fix(nav: gnav.Nav, **kw: object) -> GnssFix:
+    assert nav.t_lastfix_us is not None and nav.home is not None
+    base = dict(
+        t_us=nav.t_lastfix_us + 200_000, t_rx_us=nav.t_lastfix_us + 220_000, lat_e7=nav.home[0] + 100,
+        lon_e7=nav.home[1], alt_mm=nav.home[2], vel_ned_mps=(12.0, 0.0, 0.0), h_acc_m=0.5, v_acc_m=1.0,
+        s_acc_mps=0.05, fix_type=3, flags=GNSS_HAS_VEL_NE | GNSS_HAS_VEL_D | GNSS_HAS_ALT,
+    )  # fmt: skip
+    base.update(kw)
+    return GnssFix(**base)  # type: ignore[arg-type]
+
+
+_BAD_CALLS = {
+    "nan_gyro": (NonFiniteError, lambda n: n.imu(n.t_imu_us + 5000, (math.nan, 0.0, 0.0), (0.0, 0.0, -G))),
+    "inf_accel": (NonFiniteError, lambda n: n.imu(n.t_imu_us + 5000, (0.0, 0.0, 0.0), (0.0, math.inf, -G))),
+    "time_backwards": (
+        TimeBackwardsError,
+        lambda n: n.imu(n.t_imu_us - 5000, (0.0, 0.0, 0.0), (0.0, 0.0, -G)),
+    ),
+    "time_repeated": (TimeBackwardsError, lambda n: n.imu(n.t_imu_us, (0.0, 0.0, 0.0), (0.0, 0.0, -G))),
+    "fix_type_0": (BadArgError, lambda n: n.gps(_good_fix(n, fix_type=0))),
+    "fix_type_1": (BadArgError, lambda n: n.gps(_good_fix(n, fix_type=1))),
+    "lat_out_of_range": (RangeError, lambda n: n.gps(_good_fix(n, lat_e7=900_000_001))),
+    "lon_out_of_range": (RangeError, lambda n: n.gps(_good_fix(n, lon_e7=-1_800_000_001))),
+    "alt_out_of_range": (RangeError, lambda n: n.gps(_good_fix(n, alt_mm=100_000_001))),
+    "nan_vel_ne_present": (NonFiniteError, lambda n: n.gps(_good_fix(n, vel_ned_mps=(math.nan, 0.0, 0.0)))),
+    "nan_vel_d_present": (NonFiniteError, lambda n: n.gps(_good_fix(n, vel_ned_mps=(1.0, 0.0, math.nan)))),
+    "fix_time_backwards": (TimeBackwardsError, lambda n: n.gps(_good_fix(n, t_us=n.t_lastfix_us))),
+    "nan_mag": (NonFiniteError, lambda n: n.mag(n.t_imu_us, (0.2, math.nan, 0.4))),
+}
+
+
+@pytest.mark.parametrize("name", sorted(_BAD_CALLS))
+def test_bad_input_raises_and_leaves_state_unchanged(running_nav: gnav.Nav, name: str) -> None:
+    exc, call = _BAD_CALLS[name]
+    nav = copy.deepcopy(running_nav)
+    before = copy.deepcopy(nav)
+    with pytest.raises(exc):
+        call(nav)
+    _assert_same(nav, before)
+
+
+def test_huge_imu_dt_raises_bad_dt_and_only_reanchors_time(running_nav: gnav.Nav) -> None:
+    nav = copy.deepcopy(running_nav)
+    before = copy.deepcopy(nav)
+    assert nav.t_imu_us is not None
+    t_new = nav.t_imu_us + 100_001  # imu_dt_max_s = 0.1
+    with pytest.raises(BadDtError):
+        nav.imu(t_new, (0.0, 0.0, 0.0), (0.0, 0.0, -G))
+    assert nav.t_imu_us == t_new
+    _assert_same(nav, before, ignore=("nav.t_imu_us",))
+    nav.imu(t_new + 5000, (0.0, 0.0, 0.0), (0.0, 0.0, -G))  # and the next sample steps from there
+
+
+def test_gps_gap_longer_than_cs_dt_max_reinitialises_without_observation(running_nav: gnav.Nav) -> None:
+    nav = copy.deepcopy(running_nav)
+    made, skipped = nav.n_grav_made, nav.n_grav_skipped
+    assert nav.t_lastfix_us is not None and nav.home is not None
+    t = nav.t_lastfix_us + 10_000_001  # CS dt_max_s = 10
+    nav.gps(_good_fix(nav, t_us=t, t_rx_us=t + 20_000))
+    assert (nav.n_grav_made, nav.n_grav_skipped) == (made, skipped)
+    assert nav.t_lastfix_us == t and nav.a_last == (0.0, 0.0, 0.0)
+    ned = geo.ned_from_home(nav.home[0] + 100, nav.home[1], nav.home[2], *nav.home)
+    np.testing.assert_allclose([ax.x[0] for ax in nav.cs.axes], ned, atol=1e-9)
+    np.testing.assert_allclose([ax.x[1] for ax in nav.cs.axes], (12.0, 0.0, 0.0))
+    assert all(ax.x[2] == 0.0 for ax in nav.cs.axes)
+
+
+def test_nan_velocity_not_flagged_is_ignored(running_nav: gnav.Nav) -> None:
+    nav = copy.deepcopy(running_nav)
+    nav.gps(_good_fix(nav, vel_ned_mps=(12.0, 0.0, math.nan), flags=GNSS_HAS_VEL_NE | GNSS_HAS_ALT))
+    assert math.isfinite(nav.cs.axes[2].x[0])
+
+
+def test_bad_config_raises() -> None:
+    for cfg in [
+        replace(gnav.NavConfig(), comp_mode=3),
+        replace(gnav.NavConfig(), yaw_source=-1),
+        replace(gnav.NavConfig(), grav_period_s=0.0),
+        replace(gnav.NavConfig(), imu_dt_max_s=math.nan),
+        replace(gnav.NavConfig(), gravity_mps2=-1.0),
+        replace(gnav.NavConfig(), att=replace(att.AttConfig(), max_tilt_obs_rad=2.0)),
+    ]:
+        with pytest.raises(BadConfigError):
+            gnav.Nav(cfg)
+
+
+def test_run_records_statuses_and_keeps_going() -> None:
+    rec, _ = _straight_accel()
+    imu = rec.imu.copy()
+    imu["gyro_rps"][500, 0] = math.nan
+    gn = rec.gnss.copy()
+    gn["fix_type"][30] = 0
+    gn["lat_e7"][31] = 900_000_001
+    out = gnav.run(Recording("bad", imu, gn), replace(gnav.NavConfig(), gravity_mps2=G))
+    assert out["imu_status"][500] == 3 and np.count_nonzero(out["imu_status"]) == 1
+    assert out["gps_status"][30] == 6 and out["gps_status"][31] == 9
+    assert np.count_nonzero(out["gps_status"]) == 2
+    assert out["q"].shape == (len(imu), 4) and out["cs_P_diag"].shape == (len(imu), 9)
+    assert out["flags"].dtype == np.uint32 and out["flags"][-1] & gnav.FLAG_ALIGNED
+
+
+def test_replay_order_ties_imu_then_gps_then_mag() -> None:
+    imu = np.zeros(2, IMU_DTYPE)
+    imu["t_us"] = [100, 200]
+    gn = np.zeros(2, GNSS_DTYPE)
+    gn["t_us"], gn["t_rx_us"] = [50, 60], [200, 200]
+    mag = np.zeros(2, MAG_DTYPE)
+    mag["t_us"] = [200, 100]
+    kinds, idxs = gnav.replay_order(Recording("order", imu, gn, mag))
+    assert list(zip(kinds.tolist(), idxs.tolist(), strict=True)) == [
+        (0, 0), (2, 1), (0, 1), (1, 0), (1, 1), (2, 0)
+    ]  # fmt: skip
+
+
+def test_history_lookup_nearest_with_ties_to_older() -> None:
+    nav = gnav.Nav()
+    for k in range(70):  # more than MCA_HIST_LEN: the oldest are dropped
+        nav.hist.append(gnav.HistEntry(20_000 * (k + 1), (0.0, 0.0, -G), (1.0, 0.0, 0.0, 0.0), False))
+    assert len(nav.hist) == gnav.MCA_HIST_LEN
+    oldest = nav.hist[0].t_us
+    assert nav.hist_lookup(oldest - 1) is None
+    assert nav.hist_lookup(oldest + 10_000).t_us == oldest  # tie: the older
+    assert nav.hist_lookup(oldest + 10_001).t_us == oldest + 20_000
+    assert nav.hist_lookup(10**9).t_us == nav.hist[-1].t_us
+
+
+# --------------------------------------------------------------------------------------
+# Physics on the shared simulator (skipped until mcahrs.sim provides scenario())
+# --------------------------------------------------------------------------------------
+
+
+def test_cs_compensation_beats_plain_gravity_3x_on_sim_car_accel_brake() -> None:
+    sim = pytest.importorskip("mcahrs.sim")
+    if not hasattr(sim, "scenario"):
+        pytest.skip("mcahrs.sim has no scenario() yet")
+    res = sim.scenario("car_accel_brake", seed=1)
+    rec, truth = res.recording, res.truth
+    # A car with course-over-ground yaw (ALGORITHMS.md 7), so (30 deg)^2 initial yaw variance.
+    # Without a yaw source the compensation is rotated by the yaw error (the car heads 20 deg
+    # east of the aligned yaw 0) and the ratio is only ~1.1-3.7x over seeds 1-5: see
+    # test_roll_pitch_observations_leave_yaw_alone_without_yaw_source.
+    base = replace(
+        gnav.NavConfig(),
+        yaw_source=gnav.YAW_COG,
+        att=replace(att.AttConfig(), yaw0_var_rad2=math.radians(30.0) ** 2),
+    )
+    rms = {}
+    for mode in (gnav.COMP_OFF, gnav.COMP_CS):
+        out = gnav.run(rec, replace(base, comp_mode=mode))
+        assert np.all(out["imu_status"] == 0) and np.all(out["gps_status"] == 0)
+        aligned = (out["flags"] & gnav.FLAG_ALIGNED) != 0
+        idx = np.searchsorted(truth.t_us, out["t_us"][aligned])
+        assert np.array_equal(truth.t_us[idx], out["t_us"][aligned])
+        err = out["euler"][aligned, 1] - truth.euler_rad[idx, 1]
+        rms[mode] = float(np.sqrt(np.mean(err**2)))
+    # Measured 4.50 deg vs 0.80 deg (5.6x) at seed 1; >= 5.6x over seeds 1-5.
+    assert rms[gnav.COMP_CS] * 3.0 <= rms[gnav.COMP_OFF], rms
