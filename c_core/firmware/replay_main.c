@@ -3,7 +3,7 @@
  * on the core, writes one output record per op, and (on the Cortex-M4F) measures the
  * instructions and stack of every core call.
  *
- *   replay <vectors.bin> <outputs.bin> [<costs.bin>]
+ *   replay <vectors.mcav> <outputs.mcao> [<costs.mcac>]
  *
  * The same source builds for the host (stdio) and for the Cortex-M4F under QEMU
  * (semihosting); only replay_io.h's implementation differs, so host and target outputs
@@ -591,7 +591,7 @@ int main(int argc, char **argv)
     g_cost.h = -1;
     rio_init(&argc, &argv);
     if (argc < 3) {
-        rio_log("usage: replay <vectors.bin> <outputs.bin> [<costs.bin>]");
+        rio_log("usage: replay <vectors.mcav> <outputs.mcao> [<costs.mcac>]");
         return 2;
     }
     g_in.h = rio_open(argv[1], 0);

@@ -3,6 +3,8 @@
 
 #include <math.h>
 
+#include "mca_geo_table.inc"
+
 #define WGS84_A 6378137.0f
 #define WGS84_E2 6.69437999014e-3f
 #define E7_TO_RAD 1.74532925199433e-9f /* 1e-7 deg in rad */
@@ -24,6 +26,20 @@ static float lat_rad(int32_t e7)
     return (float)whole * 0.0174532925199433f + (float)frac * E7_TO_RAD;
 }
 
+/* sin and cos of a latitude (|lat| <= 90e7) to ~1 ulp: whole degrees from the table,
+ * the remainder (< 1 deg) by sinf/cosf, which are accurate for a small argument. */
+static void lat_sincos(int32_t e7, float *s, float *c)
+{
+    const int32_t a = e7 < 0 ? -e7 : e7;
+    const int32_t k = a / 10000000;
+    const float f = (float)(a - k * 10000000) * E7_TO_RAD;
+    const float sf = sinf(f), cf = cosf(f);
+    const float sk = mca_sin_deg[k], ck = mca_sin_deg[90 - k];
+    const float sv = sk * cf + ck * sf;
+    *c = ck * cf - sk * sf;
+    *s = e7 < 0 ? -sv : sv;
+}
+
 mca_status_t mca_geo_set_home(mca_geo_home_t *home, int32_t lat_e7, int32_t lon_e7, int32_t alt_mm)
 {
     if (home == NULL) {
@@ -33,12 +49,10 @@ mca_status_t mca_geo_set_home(mca_geo_home_t *home, int32_t lat_e7, int32_t lon_
     if (st != MCA_OK) {
         return st;
     }
-    const float phi = lat_rad(lat_e7);
     home->lat_e7 = lat_e7;
     home->lon_e7 = lon_e7;
     home->alt_mm = alt_mm;
-    home->sin_lat = sinf(phi);
-    home->cos_lat = cosf(phi);
+    lat_sincos(lat_e7, &home->sin_lat, &home->cos_lat);
     home->root = sqrtf(1.0f - WGS84_E2 * home->sin_lat * home->sin_lat);
     home->n_m = WGS84_A / home->root;
     return MCA_OK;
@@ -67,8 +81,8 @@ mca_status_t mca_geo_to_ned(const mca_geo_home_t *home, int32_t lat_e7, int32_t 
     const float dh = (float)((int64_t)alt_mm - (int64_t)home->alt_mm) * 1e-3f;
     const float h0 = (float)home->alt_mm * 1e-3f;
     const float s0 = home->sin_lat, c0 = home->cos_lat;
-    const float phi1 = lat_rad(lat_e7);
-    const float s1 = sinf(phi1), c1 = cosf(phi1);
+    float s1, c1;
+    lat_sincos(lat_e7, &s1, &c1);
     /* s1 - s0 = 2 cos(mean) sin(dphi/2), without cancellation */
     const float phim = lat_rad(home->lat_e7) + 0.5f * dphi;
     const float ds = 2.0f * cosf(phim) * sinf(0.5f * dphi);

@@ -225,6 +225,27 @@ class Cs3:
         return np.array([self._cs.axis[i].s2_m2ps4 for i in range(3)], dtype=np.float32)
 
 
+# ---------------------------------------------------------------- geodesy
+
+def geo_to_ned(home: tuple[int, int, int], lat_e7: Any, lon_e7: Any, alt_mm: Any) -> np.ndarray:
+    """NED (float32 m) of integer geodetic points relative to an integer home (C core, ALGORITHMS.md 6)."""
+    h = ffi.new("mca_geo_home_t *")
+    check(lib.mca_geo_set_home(h, *(int(v) for v in home)), f"mca_geo_set_home{tuple(home)}")
+    lat, lon, alt = (np.atleast_1d(np.asarray(v, np.int64)) for v in (lat_e7, lon_e7, alt_mm))
+    out = np.zeros((len(lat), 3), np.float32)
+    ned = ffi.new("float[3]")
+    for k in range(len(lat)):
+        check(lib.mca_geo_to_ned(h, int(lat[k]), int(lon[k]), int(alt[k]), ned),
+              f"mca_geo_to_ned({lat[k]}, {lon[k]}, {alt[k]})")
+        out[k] = list(ned)
+    return out
+
+
+def normal_gravity(lat_rad: float, h_m: float) -> float:
+    """WGS84 normal gravity of the C core (float32)."""
+    return float(lib.mca_geo_gravity(lat_rad, h_m))
+
+
 # ---------------------------------------------------------------- navigation top level
 
 PRESETS = {
@@ -353,3 +374,133 @@ class Nav:
 def replay(rec: Recording, cfg: Any = None) -> dict[str, np.ndarray]:
     """Run a recording through a fresh C navigation filter."""
     return Nav(cfg).replay(rec)
+
+
+# ================================================================ robust and adaptive updates
+# (docs/ALGORITHMS.md 5; the C's mca_kf_update). Section owned by the robust-modes work; the
+# rest of this module is unchanged by it.
+
+ROBUST_MODES: dict[str, int] = {
+    "plain": lib.MCA_ROBUST_PLAIN, "fta": lib.MCA_ROBUST_FTA, "akf": lib.MCA_ROBUST_AKF,
+    "fuzzy": lib.MCA_ROBUST_FUZZY, "igg3": lib.MCA_ROBUST_IGG3,
+}
+"""Mode names of ``robust_config`` and the golden model, with their C values."""
+
+CHI2_LEVELS: dict[float, int] = {
+    1e-4: lib.MCA_CHI2_1E4, 1e-2: lib.MCA_CHI2_1E2, 5e-3: lib.MCA_CHI2_5E3, 2.5e-2: lib.MCA_CHI2_2P5E2,
+}
+"""Upper-tail levels a of the C chi-square table, with their ``mca_chi2_level_t`` values."""
+
+_MODES_WITH_MEMORY = (lib.MCA_ROBUST_AKF, lib.MCA_ROBUST_FUZZY)
+
+
+def _robust_mode(mode: str | int) -> int:
+    if isinstance(mode, str):
+        if mode not in ROBUST_MODES:
+            raise errors.BadConfigError(f"unknown robust mode {mode!r}; known: {', '.join(ROBUST_MODES)}")
+        return ROBUST_MODES[mode]
+    if int(mode) not in ROBUST_MODES.values():
+        raise errors.BadConfigError(f"unknown robust mode {mode!r}")
+    return int(mode)
+
+
+def robust_config(mode: str | int = "plain", **overrides: Any) -> Any:
+    """A checked ``mca_robust_config_t *``: the C defaults, ``mode`` ('plain', 'fta', 'akf', 'fuzzy',
+    'igg3' or its number) and field overrides (``akf_window=4``, ``igg_k0=2.0``...)."""
+    cfg = ffi.new("mca_robust_config_t *")
+    lib.mca_robust_config_default(cfg)
+    cfg.mode = _robust_mode(mode)
+    _apply(cfg, overrides, "mca_robust_config_t")
+    check(lib.mca_robust_config_check(cfg), "mca_robust_config_t")
+    return cfg
+
+
+class RobustFilterState:
+    """Owns one ``mca_robust_state_t`` (the memory AKF and the fuzzy detector keep between the
+    updates of one filter), initialised empty by ``mca_robust_state_init``."""
+
+    def __init__(self) -> None:
+        self.c = ffi.new("mca_robust_state_t *")
+        self.reset()
+
+    def reset(self) -> None:
+        lib.mca_robust_state_init(self.c)
+
+    def copy(self) -> RobustFilterState:
+        other = RobustFilterState()
+        ffi.memmove(other.c, self.c, ffi.sizeof("mca_robust_state_t"))
+        return other
+
+    def as_dict(self) -> dict[str, Any]:
+        return _struct_to_dict(self.c[0])
+
+    @property
+    def q_scale(self) -> float:
+        """Factor the owning filter applies to its Q at its next predict (AKF; 1 otherwise)."""
+        return float(self.c.q_scale)
+
+    @property
+    def d_k(self) -> float:
+        return float(self.c.d_k)
+
+    @property
+    def alarm(self) -> bool:
+        return bool(self.c.alarm)
+
+
+def _report_dict(rep: Any) -> dict[str, Any]:
+    m = int(rep.m)
+    return {
+        "m": m,
+        "mode": int(rep.mode),
+        "nu": np.array(list(rep.nu)[:m], np.float32),
+        "C": np.array(list(rep.c)[: m * m], np.float32).reshape(m, m),
+        "T": float(rep.t_stat),
+        "factor": float(rep.factor),
+        "w": np.array(list(rep.w)[:m], np.float32),
+        "q_scale": float(rep.q_scale),
+        "detected": bool(rep.detected),
+        "rejected": bool(rep.rejected),
+        "alarm": bool(rep.alarm),
+    }
+
+
+def kf_update(x: Any, P: Any, H: Any, z: Any, R: Any, cfg: Any = None,  # noqa: N803 - P, H, R as in the text
+              state: RobustFilterState | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """One ``mca_kf_update`` on float32 copies: ``x`` (n), ``P`` (n x n), ``H`` (m x n, or (n,) for
+    m = 1), ``z`` (m), ``R`` (m x m, or (m,) for a diagonal). ``cfg`` from :func:`robust_config`
+    (None: plain); ``state`` a :class:`RobustFilterState`, required by 'akf' and 'fuzzy', updated
+    in place. Returns ``(x_new, P_new, report)``; the inputs are not modified. Errors raise the
+    :mod:`mcahrs.errors` exception of the C status (x, P, state then unchanged)."""
+    xa = np.array(x, dtype=np.float32).reshape(-1)
+    n = xa.size
+    ha = np.atleast_2d(np.asarray(H, dtype=np.float32))
+    m = ha.shape[0]
+    ha = _as_f32(ha, (m, n), "H")
+    za = _as_f32(np.asarray(z, dtype=np.float32).reshape(-1), (m,), "z")
+    ra = np.asarray(R, dtype=np.float32)
+    if ra.ndim <= 1 and ra.size == m:
+        ra = np.diag(ra.reshape(m))
+    ra = _as_f32(ra, (m, m), "R")
+    pa = np.array(_as_f32(P, (n, n), "P"), dtype=np.float32, copy=True)
+    mode = int(cfg.mode) if cfg is not None else lib.MCA_ROBUST_PLAIN
+    if state is None and mode in _MODES_WITH_MEMORY:
+        raise errors.NullError(f"kf_update: robust mode {mode} needs a RobustFilterState")
+    ws_len = int(lib.mca_kf_ws_len(n, m))
+    ws = np.empty(max(ws_len, 1), np.float32)
+    rep = ffi.new("mca_update_report_t *")
+    st = lib.mca_kf_update(_fptr(xa), _fptr(pa), n, _fptr(ha), _fptr(za), _fptr(ra), m,
+                           cfg if cfg is not None else ffi.NULL, state.c if state is not None else ffi.NULL,
+                           _fptr(ws), ws_len, rep)
+    check(st, f"mca_kf_update(n={n}, m={m}, mode={mode})")
+    return xa, pa.reshape(n, n), _report_dict(rep)
+
+
+def chi2_quantile(m: int, level: float) -> float:
+    """The C core's chi2_m(a) (``mca_chi2_quantile``) for m = 1..MCA_MEAS_MAX and a in
+    :data:`CHI2_LEVELS` (1e-4, 1e-2, 5e-3, 2.5e-2)."""
+    if level not in CHI2_LEVELS:
+        raise errors.BadArgError(f"chi2 level {level!r} not in the table ({', '.join(map(str, CHI2_LEVELS))})")
+    if not 1 <= int(m) <= lib.MCA_MEAS_MAX:
+        raise errors.BadArgError(f"chi2 degrees of freedom {m!r} not in 1..{lib.MCA_MEAS_MAX}")
+    return float(lib.mca_chi2_quantile(int(m), CHI2_LEVELS[level]))

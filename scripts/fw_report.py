@@ -1,0 +1,476 @@
+#!/usr/bin/env python3
+"""Cost report of the Cortex-M4F build: flash/RAM, stack, instructions, CPU share.
+
+    python scripts/fw_report.py [--cpi 1.25] [--mhz 168] [--imu-hz 400] [--gps-hz 10]
+
+Builds ``c_core/firmware`` for the M4F (build/fw, -O2), replays every golden vector file
+(``tests/vectors/*.mcav``) on ``qemu-system-arm -M mps2-an386 -icount shift=0`` and prints,
+beside the goals (it reports, it does not assert):
+
+1. flash and RAM of the core alone (``mca_core_nav.elf``: the functions of ``mca_nav.h``
+   as roots, with what they pull from libm/libc/libgcc; ``mca_core_only.elf``: every public
+   function), per object from the map file, and of the whole replay image;
+2. worst-case stack of every public function: ``-fstack-usage`` frames (``.su``) plus the
+   call graph of the linked image (``bl``/tail-call targets in ``objdump -d``; frames of
+   library functions from their prologues), beside the painted high-water measured in QEMU;
+3. executed instructions per call of each measured entry point (exact: see
+   c_core/firmware/README.md), mean and max, and the CPU share at the given clock and CPI;
+4. host vs QEMU agreement of the outputs (real libm to tolerance, pinned libm bit for bit).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import subprocess
+import sys
+import tempfile
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import gen_vectors as gv  # noqa: E402
+
+GOAL_FLASH = 24 * 1024
+GOAL_STATE = 4 * 1024
+GOAL_STACK = 1024
+GOAL_INSTR = {"nav_imu": 2500, "nav_gps": 12000}
+KIB = 1024.0
+
+
+def ok(value: float, goal: float) -> str:
+    return "ok" if value <= goal else "OVER"
+
+
+# ----------------------------------------------------------------------------- sizes from the map
+
+
+def map_groups(map_path: Path, members: bool = False) -> dict[str, dict[str, int]]:
+    """Bytes per object group (core file, libm, libc, libgcc, replay) and column (text, rodata,
+    data, bss), from the input-section lines of a GNU ld map."""
+    text = map_path.read_text()
+    text = text[text.index("Linker script and memory map") :]
+    flash_out = {".isr_vector", ".text", ".rodata", ".ARM.extab", ".ARM.exidx", ".init_array"}
+    groups: dict[str, dict[str, int]] = defaultdict(lambda: defaultdict(int))
+    out_sec, pending = None, None
+
+    def add(in_sec: str, size: int, origin: str) -> None:
+        if out_sec in flash_out:
+            col = "rodata" if in_sec.startswith(".rodata") else "text"
+        elif out_sec == ".data":
+            col = "data"
+        elif out_sec == ".bss":
+            col = "bss"
+        else:
+            return  # .stack, debug and other non-loaded sections
+        groups[member_of(origin) if members else group_of(origin)][col] += size
+
+    for line in text.splitlines():
+        m = re.match(r"^(\.\S+)", line)
+        if m:
+            out_sec, pending = m.group(1), None
+            continue
+        m = re.match(r"^ \*fill\*\s+0x[0-9a-f]+\s+0x([0-9a-f]+)", line)
+        if m:
+            add(".fill", int(m.group(1), 16), "*fill*")
+            continue
+        m = re.match(r"^ (\.\S+|COMMON)\s+0x[0-9a-f]+\s+0x([0-9a-f]+)\s+(\S.*)$", line)
+        if m:
+            add(m.group(1), int(m.group(2), 16), m.group(3))
+            pending = None
+            continue
+        m = re.match(r"^ (\.\S+|COMMON)\s*$", line)
+        if m:
+            pending = m.group(1)
+            continue
+        m = re.match(r"^\s+0x[0-9a-f]+\s+0x([0-9a-f]+)\s+(\S.*)$", line)
+        if m and pending:
+            add(pending, int(m.group(1), 16), m.group(2))
+            pending = None
+    return groups
+
+
+def group_of(origin: str) -> str:
+    if origin == "*fill*":
+        return "alignment padding"
+    m = re.search(r"libmcahrs_core\.a\((.+?)\.obj\)", origin)
+    if m:
+        return f"core {m.group(1)}"
+    for lib, name in (
+        ("libm.a", "libm (newlib)"),
+        ("libc_nano.a", "libc (newlib-nano)"),
+        ("libgcc.a", "libgcc"),
+    ):
+        if lib + "(" in origin:
+            return name
+    return "replay/startup " + Path(origin.split("(")[0]).name
+
+
+def member_of(origin: str) -> str:
+    """Library member (lib_a-sf_sin.o -> libm sf_sin) or the group of anything else."""
+    m = re.search(r"(libm|libc_nano|libgcc)\.a\((?:lib_a-)?(.+?)\.o\)", origin)
+    return f"{m.group(1).replace('_nano', '')}:{m.group(2)}" if m else group_of(origin)
+
+
+def print_groups(title: str, groups: dict[str, dict[str, int]]) -> int:
+    print(f"  {title}")
+    print(f"    {'object':32s} {'text':>7s} {'rodata':>7s} {'data':>6s} {'bss':>6s}")
+    tot = defaultdict(int)
+    order = sorted(groups, key=lambda g: (not g.startswith("core"), g))
+    for g in order:
+        c = groups[g]
+        if not any(c.values()):
+            continue
+        print(f"    {g:32s} {c['text']:7d} {c['rodata']:7d} {c['data']:6d} {c['bss']:6d}")
+        for k in ("text", "rodata", "data", "bss"):
+            tot[k] += c[k]
+    print(f"    {'total':32s} {tot['text']:7d} {tot['rodata']:7d} {tot['data']:6d} {tot['bss']:6d}")
+    flash = tot["text"] + tot["rodata"] + tot["data"]
+    return flash
+
+
+# ----------------------------------------------------------------------------- stack
+
+
+def su_frames(build: Path) -> dict[str, tuple[int, str]]:
+    """function -> (bytes, qualifier) from the core's -fstack-usage files."""
+    frames = {}
+    for su in (build / "mcahrs_core").rglob("*.su"):
+        for line in su.read_text().splitlines():
+            parts = line.split("\t")
+            if len(parts) == 3:
+                frames[parts[0].rsplit(":", 1)[-1]] = (int(parts[1]), parts[2])
+    return frames
+
+
+def disassemble(elf: Path) -> dict[str, list[tuple[str, str]]]:
+    """function -> [(mnemonic, operands)] of the linked image."""
+    txt = subprocess.run(
+        ["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", str(elf)],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    funcs: dict[str, list[tuple[str, str]]] = {}
+    cur = None
+    for line in txt.splitlines():
+        m = re.match(r"^[0-9a-f]+ <([^>]+)>:$", line)
+        if m:
+            cur = m.group(1)
+            funcs[cur] = []
+            continue
+        m = re.match(r"^\s+[0-9a-f]+:\s+(\S+)\s*(.*)$", line)
+        if m and cur is not None:
+            funcs[cur].append((m.group(1), m.group(2)))
+    return funcs
+
+
+def _reg_count(regs: str) -> tuple[int, int]:
+    """(core registers, bytes of FP registers) in a {...} list, ranges expanded."""
+    core, fp = 0, 0
+    for r in regs.strip("{} ").split(","):
+        r = r.strip()
+        m = re.match(r"([sd])(\d+)(?:-[sd](\d+))?$", r)
+        if m:
+            n = int(m.group(3) or m.group(2)) - int(m.group(2)) + 1
+            fp += n * (8 if m.group(1) == "d" else 4)
+        elif r:
+            core += 1
+    return core, fp
+
+
+def frame_from_code(insns: list[tuple[str, str]]) -> int:
+    """Stack a function allocates: every push/stmdb, vpush/vstmdb, sub sp and str ..! in it,
+    summed (an upper bound: a shrink-wrapped function saves registers after its first
+    branches, and a function with two save sites is counted twice)."""
+    total = 0
+    for mn, ops in insns:
+        base = mn.split(".")[0]
+        if base in ("push", "stmdb") and (base == "push" or ops.startswith("sp!")):
+            core, fp = _reg_count(ops[ops.index("{") :])
+            total += 4 * core + fp
+        elif base in ("vpush", "vstmdb") and (base == "vpush" or ops.startswith("sp!")):
+            total += _reg_count(ops[ops.index("{") :])[1]
+        elif base in ("sub", "subw") and re.match(r"sp, (sp, )?#(\d+)", ops):
+            total += int(re.match(r"sp, (sp, )?#(\d+)", ops).group(2))
+        elif base == "str" and re.search(r"\[sp, #-(\d+)\]!", ops):
+            total += int(re.search(r"\[sp, #-(\d+)\]!", ops).group(1))
+    return total
+
+
+_BRANCH = re.compile(r"^b(l|lx)?(eq|ne|cs|cc|hs|lo|mi|pl|vs|vc|hi|ls|ge|lt|gt|le|al)?$")
+
+
+def call_graph(funcs: dict[str, list[tuple[str, str]]]) -> tuple[dict[str, set[str]], set[str]]:
+    """Edges f -> g for bl/blx to g and for branches to another function's start (tail calls);
+    the set of functions with an indirect call (blx/bx through a register other than lr)."""
+    edges: dict[str, set[str]] = defaultdict(set)
+    indirect = set()
+    for f, insns in funcs.items():
+        for mn, ops in insns:
+            base = mn.split(".")[0]
+            if not _BRANCH.match(base) and base != "bx":
+                continue
+            m = re.search(r"<([^>+]+)(\+0x[0-9a-f]+)?>", ops)
+            if m:
+                if m.group(1) != f and not m.group(2):
+                    edges[f].add(m.group(1))
+            elif re.match(r"r\d+|ip", ops.strip()) and base in ("blx", "bx"):
+                indirect.add(f)
+    return edges, indirect
+
+
+def worst_stack(fn: str, frames: dict[str, int], edges: dict[str, set[str]]) -> tuple[int, list[str], bool]:
+    """Deepest frame chain from fn (tail calls counted as calls: an upper bound). Iterative,
+    memoised; a cycle (recursion) is reported and cut."""
+    memo: dict[str, tuple[int, list[str]]] = {}
+    cyclic = False
+    stack = [(fn, 0)]
+    on_path: set[str] = set()
+    while stack:
+        f, state = stack.pop()
+        if state == 0:
+            if f in memo:
+                continue
+            on_path.add(f)
+            stack.append((f, 1))
+            for g in edges.get(f, ()):
+                if g in on_path:
+                    cyclic = True
+                elif g not in memo:
+                    stack.append((g, 0))
+        else:
+            best, path = 0, []
+            for g in edges.get(f, ()):
+                if g in memo and memo[g][0] > best:
+                    best, path = memo[g]
+            memo[f] = (frames.get(f, 0) + best, [f] + path)
+            on_path.discard(f)
+    return memo[fn][0], memo[fn][1], cyclic
+
+
+# ----------------------------------------------------------------------------- main
+
+
+def public_functions(archive: Path) -> list[str]:
+    out = subprocess.run(
+        ["arm-none-eabi-nm", "-g", "--defined-only", str(archive)], check=True, capture_output=True, text=True
+    ).stdout
+    return sorted({ln.split()[-1] for ln in out.splitlines() if re.match(r"^[0-9a-f]+ T ", ln)})
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cpi", type=float, default=1.25, help="cycles per instruction assumed (default 1.25)")
+    ap.add_argument("--mhz", type=float, default=168.0)
+    ap.add_argument("--imu-hz", type=float, default=400.0)
+    ap.add_argument("--gps-hz", type=float, default=10.0)
+    args = ap.parse_args(argv)
+
+    build = gv.FW_BUILD
+    elf = gv.build_firmware(build)
+    gcc = subprocess.run(["arm-none-eabi-gcc", "-dumpversion"], capture_output=True, text=True).stdout.strip()
+    print(
+        f"MCAHRS Cortex-M4F report: arm-none-eabi-gcc {gcc}, -O2 -mcpu=cortex-m4 -mfpu=fpv4-sp-d16 "
+        f"-mfloat-abi=hard, newlib-nano, {build.relative_to(gv.REPO)}"
+    )
+
+    # ---- run the vectors (costs) and the comparisons
+    runs = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        host = gv.build_host_replay()
+        for vec in gv.vector_files():
+            out, cost = Path(tmp) / f"{vec.stem}.mcao", Path(tmp) / f"{vec.stem}.cost"
+            r = gv.run_qemu(elf, vec, out, cost)
+            if r.returncode != 0:
+                print(f"QEMU failed on {vec.name}: exit {r.returncode} {r.stdout}{r.stderr}")
+                return 1
+            href = Path(tmp) / f"{vec.stem}.host.mcao"
+            gv.run_host(host, vec, href)
+            hp, qp = Path(tmp) / f"{vec.stem}.hp", Path(tmp) / f"{vec.stem}.qp"
+            gv.run_host(host.with_name("replay_pinned"), vec, hp)
+            gv.run_qemu(elf.with_name("fw_pinned.elf"), vec, qp)
+            runs[vec.stem] = (
+                gv.read_costs(cost),
+                gv.compare_outputs(href, out),
+                hp.read_bytes() == qp.read_bytes(),
+            )
+    meta = next(iter(runs.values()))[0].meta
+
+    # ---- 1. flash and RAM
+    print("\n1. Flash and RAM (bytes; flash = text + rodata + data initialisers)")
+    nav_elf = build / "mca_core_nav.elf"
+    flash_nav = None
+    if nav_elf.exists():
+        flash_nav = print_groups(
+            "core alone, roots = the functions of mca_nav.h (what a flight controller calls):",
+            map_groups(Path(str(nav_elf) + ".map")),
+        )
+        print(
+            f"    core flash {flash_nav} B = {flash_nav / KIB:.1f} KiB   "
+            f"goal <= 24 KiB: {ok(flash_nav, GOAL_FLASH)}"
+        )
+        mem = map_groups(Path(str(nav_elf) + ".map"), members=True)
+        libs = sorted(((c["text"] + c["rodata"], g) for g, c in mem.items() if ":" in g), reverse=True)
+        print("    largest library members: " + ", ".join(f"{g} {n}" for n, g in libs[:8]))
+    g_all = map_groups(Path(str(build / "mca_core_only.elf") + ".map"))
+    flash_all = sum(c["text"] + c["rodata"] + c["data"] for c in g_all.values())
+    print(
+        f"  core alone, roots = every public function (adds the batch replay etc.): "
+        f"flash {flash_all} B = {flash_all / KIB:.1f} KiB"
+    )
+    dbl = sum(c["text"] for g, c in g_all.items() if g == "libgcc")
+    print(f"    of which libgcc {dbl} B (64-bit conversion and soft-float helpers: see the end)")
+    size = subprocess.run(
+        ["arm-none-eabi-size", str(elf)], capture_output=True, text=True
+    ).stdout.splitlines()[1]
+    t, d, b = (int(x) for x in size.split()[:3])
+    print(
+        f"  whole replay image fw.elf: text {t}  data {d}  bss {b} (bss: {meta.get('stack_bytes', 0)} stack, "
+        f"2 x 4 KiB file buffers, the filter states)"
+    )
+    st_nav, st_cs = meta.get("sizeof_nav", 0), meta.get("sizeof_cs3", 0)
+    print(
+        f"  state RAM: sizeof(mca_nav_t) = {st_nav} B ({st_nav / KIB:.2f} KiB)   goal <= 4 KiB: "
+        f"{ok(st_nav, GOAL_STATE)}   [sizeof(mca_cs3_t) = {st_cs} B, inside it]"
+    )
+    core_rw = sum(
+        c["data"] + c["bss"]
+        for g, c in (map_groups(Path(str(nav_elf) + ".map")) if nav_elf.exists() else g_all).items()
+    )
+    print(f"  static RAM of the core + libraries: {core_rw} B (newlib's errno/impure data pulled by libm)")
+
+    # ---- 2. stack
+    print(
+        f"\n2. Stack per public function (bytes): static worst case = .su frames + call graph of "
+        f"{build.name}/mca_core_only.elf; painted = high-water measured in QEMU over all vectors"
+    )
+    su = su_frames(build)
+    funcs = disassemble(build / "mca_core_only.elf")
+    frames = {f: su[f][0] if f in su else frame_from_code(ins) for f, ins in funcs.items()}
+    mism = [f for f in su if f in funcs and frame_from_code(funcs[f]) != su[f][0]]
+    dyn = [f for f, (_, q) in su.items() if q != "static"]
+    edges, indirect = call_graph(funcs)
+    painted = defaultdict(int)
+    for costs, _, _ in runs.values():
+        for ep, stk in zip(costs.calls["id"], costs.calls["b"], strict=True):
+            painted[gv.EP_NAME.get(int(ep), "?")] = max(painted[gv.EP_NAME.get(int(ep), "?")], int(stk))
+    pub = public_functions(build / "mcahrs_core" / "libmcahrs_core.a")
+    pub.sort(key=lambda f: (not f.startswith("mca_nav_"), f))
+    print(
+        f"  {'function':28s} {'static':>6s} {'painted':>7s}  goal <= 1 KiB   "
+        "deepest chain (function frame, ...)"
+    )
+    worst_static = 0
+    for f in pub:
+        if f not in funcs:
+            continue
+        depth, path, cyc = worst_stack(f, frames, edges)
+        worst_static = max(worst_static, depth)
+        p = painted.get(f[len("mca_") :], None)
+        flag = " RECURSION" if cyc else ""
+        flag += " INDIRECT CALL" if set(path) & indirect else ""
+        chain = " > ".join(f"{x.replace('mca_', '')} {frames.get(x, 0)}" for x in path[:5])
+        chain += " > ..." if len(path) > 5 else ""
+        print(f"  {f:28s} {depth:6d} {'' if p is None else p:>7}  {ok(depth, GOAL_STACK):13s}  {chain}{flag}")
+    painted_ok = all(
+        painted[e] <= worst_stack("mca_" + e, frames, edges)[0] for e in painted if "mca_" + e in funcs
+    )
+    mism_txt = ", ".join(f"{f} {su[f][0]}/{frame_from_code(funcs[f])}" for f in mism[:4])
+    print(
+        f"  cross-checks: .su frame vs frame read from the code (.su/code) differ for {len(mism)} of "
+        f"{len(su)} core functions{': ' + mism_txt if mism else ''}; non-static .su entries: "
+        f"{dyn or 'none'}; indirect calls: "
+        f"{sorted(indirect) or 'none'}. Painted <= static for every measured entry point: "
+        f"{painted_ok}"
+    )
+
+    # ---- 3. instructions
+    print(
+        f"\n3. Instructions per call (QEMU -icount shift=0, SysTick vernier, exact; the count includes the "
+        f"call and its argument set-up), over {len(runs)} vector files"
+    )
+    per_ep: dict[str, list[np.ndarray]] = defaultdict(list)
+    for costs, _, _ in runs.values():
+        for ep in np.unique(costs.calls["id"]):
+            per_ep[gv.EP_NAME.get(int(ep), str(ep))].append(costs.calls["a"][costs.calls["id"] == ep])
+    stats = {}
+    print(f"  {'entry point':16s} {'calls':>6s} {'mean':>8s} {'p99':>8s} {'max':>8s} {'min':>7s}  goal")
+    for ep in sorted(per_ep, key=lambda e: gv.EP[e.upper()]):
+        a = np.concatenate(per_ep[ep]).astype(np.float64)
+        stats[ep] = (a.mean(), a.max())
+        goal = GOAL_INSTR.get(ep)
+        gtxt = f"<= {goal}: mean {ok(a.mean(), goal)}, max {ok(a.max(), goal)}" if goal else ""
+        print(
+            f"  mca_{ep:12s} {a.size:6d} {a.mean():8.0f} {np.percentile(a, 99):8.0f} {a.max():8.0f} "
+            f"{a.min():7.0f}  {gtxt}"
+        )
+
+    # ---- 4. CPU share
+    cyc_us = args.mhz
+    print(
+        f"\n4. CPU at {args.mhz:g} MHz, assuming {args.cpi:g} cycles per instruction on the M4F (flash wait "
+        "states behind the ART cache, 2-cycle loads, 14-cycle VDIV/VSQRT; QEMU counts instructions, "
+        "not cycles)"
+    )
+    if "nav_imu" in stats and "nav_gps" in stats:
+        imu, gps = stats["nav_imu"], stats["nav_gps"]
+        out = stats.get("nav_output", (0.0, 0.0))
+        mean = (args.imu_hz * imu[0] + args.gps_hz * gps[0]) * args.cpi / (args.mhz * 1e6)
+        with_out = mean + args.imu_hz * out[0] * args.cpi / (args.mhz * 1e6)
+        print(
+            f"  {args.imu_hz:g} Hz IMU step + {args.gps_hz:g} Hz GPS step: mean load {100 * mean:.2f} % "
+            f"({100 * with_out:.2f} % with mca_nav_output after every IMU step)"
+        )
+        print(
+            f"  longest IMU step {imu[1] * args.cpi / cyc_us:.1f} us of its {1e6 / args.imu_hz:.0f} us "
+            "period; "
+            f"longest GPS step {gps[1] * args.cpi / cyc_us:.1f} us"
+        )
+        print(
+            f"  at 1 kHz IMU (DESIGN.md 7 upper rate): mean load "
+            f"{100 * (1000 * imu[0] + args.gps_hz * gps[0]) * args.cpi / (args.mhz * 1e6):.2f} %"
+        )
+    else:
+        print("  (no navigation calls in the vectors)")
+
+    # ---- 5. host vs QEMU
+    print(
+        f"\n5. Host (x86-64, glibc) vs QEMU (M4F, newlib) on the same vectors: integers exactly, floats to "
+        f"{gv.RTOL_LIBM:g} of each component's scale; pinned libm must be bit-identical"
+    )
+    print(
+        f"  {'vector':16s} {'records':>7s} {'floats':>7s} {'bit-identical':>13s} {'worst/scale':>11s}  "
+        f"{'result':6s} pinned libm"
+    )
+    for name, (_, cmp, pinned_same) in runs.items():
+        same = 100 * cmp.floats_identical / max(cmp.floats, 1)
+        print(
+            f"  {name:16s} {cmp.records:7d} {cmp.floats:7d} {same:12.1f}% {cmp.worst:11.1e}  "
+            f"{'ok' if cmp.ok() else 'FAIL':6s} {'identical' if pinned_same else 'DIFFERENT'}"
+        )
+    helpers = defaultdict(set)
+    for f, insns in funcs.items():
+        if f.startswith("mca_") or f in su:
+            for mn, ops in insns:
+                m = re.search(r"<(__aeabi_\w+)>", ops)
+                if m and mn.split(".")[0] in ("bl", "b", "blx"):
+                    helpers[m.group(1)].add(f)
+    if helpers:
+        print(
+            "\nlibgcc helpers the core calls (the M4F FPU is single precision, with no 64-bit conversions):"
+        )
+        for h in sorted(helpers):
+            print(f"  {h:16s} from {', '.join(sorted(helpers[h]))}")
+        print(
+            "  float -> 64-bit integer (__aeabi_f2lz/f2ulz) is done in libgcc with double soft-float (f2d,"
+            " dmul, dsub, d2uiz); 64-bit integer -> float (__aeabi_l2f/ul2f) shares an object with soft-float"
+            " fadd. Converting 32-bit values instead keeps both in the FPU (one vcvt)."
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
