@@ -359,15 +359,15 @@ def test_default_configs_match_algorithms_table() -> None:
     h, v = CsAxisConfig.horizontal(), CsAxisConfig.vertical()
     assert (h.tau_a_s, h.tau_p_s, h.tau_v_s) == (v.tau_a_s, v.tau_p_s, v.tau_v_s) == (2.0, 60.0, 5.0)
     assert (h.sigma_p_m, v.sigma_p_m, h.sigma_v_mps, v.sigma_v_mps) == (1.5, 3.0, 0.05, 0.08)
-    assert (h.sigma_a0_mps2, v.sigma_a0_mps2, h.a_max_mps2, v.a_max_mps2) == (1.0, 0.5, 6.0, 3.0)
+    assert (h.sigma_a0_mps2, v.sigma_a0_mps2, h.a_max_mps2, v.a_max_mps2) == (0.5, 0.3, 6.0, 3.0)
     assert h.sigma_a_min_mps2 == v.sigma_a_min_mps2 == 0.05
-    assert h.adaptive and v.adaptive
+    assert not h.adaptive and not v.adaptive  # fixed sigma_a by default (ALGORITHMS.md 2, note)
     assert (h.p0_var_m2, h.v0_var_m2s2, h.a0_var_m2s4, h.dt_max_s) == (25.0, 1.0, 1.0, 10.0)
     assert (v.p0_var_m2, v.v0_var_m2s2, v.a0_var_m2s4, v.dt_max_s) == (25.0, 1.0, 1.0, 10.0)
 
 
 def test_maneuver_variance_adaptive_and_fixed() -> None:
-    cfg = CsAxisConfig.horizontal()  # a_max 6, sigma_a0 1, floor 0.05
+    cfg = replace(CsAxisConfig.horizontal(), adaptive=True, sigma_a0_mps2=1.0)  # a_max 6, floor 0.05
     k = (4 - math.pi) / math.pi
     assert maneuver_variance(0.0, cfg) == 1.0
     assert maneuver_variance(2.0, cfg) == pytest.approx(k * 16.0, rel=1e-15)  # (a_max - abar)^2
