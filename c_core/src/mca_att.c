@@ -220,7 +220,10 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const floa
     const float phi_m = atan2f(gb[1], gb[2]);
     const float theta_m = atan2f(-gb[0], sqrtf(gb[1] * gb[1] + gb[2] * gb[2]));
     const float nu[2] = {mca_wrap_pi(phi_m - eul[0]), theta_m - eul[1]};
-    const float sp = sinf(eul[0]), cp = cosf(eul[0]), tt = tanf(eul[1]);
+    float sp, cp, st, ct;
+    mca_sincosf(eul[0], &sp, &cp);
+    mca_sincosf(eul[1], &st, &ct);
+    const float tt = st / ct; /* |theta| <= max_tilt_obs < 90 deg */
     const float e_rows[6] = {1.0f, sp * tt, cp * tt, 0.0f, cp, -sp};
     const float dev = att->cfg.rp_k_dev * fabsf(gn - g) / g;
     const float r = att->cfg.rp_sigma0_rad * att->cfg.rp_sigma0_rad + dev * dev + r_acc;
@@ -244,8 +247,10 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
     if (fabsf(eul[1]) > att->cfg.max_tilt_obs_rad) {
         return MCA_ERR_BAD_ARG;
     }
-    const float ct = cosf(eul[1]);
-    const float e_row[3] = {0.0f, sinf(eul[0]) / ct, cosf(eul[0]) / ct};
+    float sp, cp;
+    mca_sincosf(eul[0], &sp, &cp);
+    const float ct = mca_cosf(eul[1]);
+    const float e_row[3] = {0.0f, sp / ct, cp / ct};
     const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};
     return euler_update(att, e_row, 1u, nu, r, q_d, 0, 0, ws, rep);
 }

@@ -97,11 +97,19 @@ float mca_cs_maneuver_var(const mca_cs_config_t *cfg, float abar)
     return s2 > floor2 ? s2 : floor2;
 }
 
-/* Horner evaluation of sum_k c[k] x^k. */
-static float series(const float *c, float x)
+/* Terms of the series that keep the dropped tail below 2^-27 of the value for every entry,
+ * for 0 <= x < MCA_CS_SERIES_X (measured from the exact rational coefficients of
+ * scripts/gen_singer_series.py; the Van Loan test covers every band). */
+static size_t series_terms(float x)
+{
+    return x <= 0.05f ? 5u : x <= 0.2f ? 8u : x <= 0.5f ? 10u : x <= 1.0f ? 14u : 20u;
+}
+
+/* Horner evaluation of sum_{k<n} c[k] x^k. */
+static float series(const float *c, float x, size_t n)
 {
     float s = 0.0f;
-    for (size_t k = MCA_CS_SERIES_TERMS; k-- > 0;) {
+    for (size_t k = n; k-- > 0;) {
         s = s * x + c[k];
     }
     return s;
@@ -118,10 +126,11 @@ void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
     if (x < MCA_CS_SERIES_X) {
         /* q_ij = q T^p / 2 * g_ij(x)/x^p, series of scripts/gen_singer_series.py */
         const float t2 = t * t, t3 = t2 * t;
-        q11 = 0.5f * qc * t3 * t2 * series(mca_cs_series_g11, x);
-        q12 = 0.5f * qc * t2 * t2 * series(mca_cs_series_g12, x);
-        q13 = 0.5f * qc * t3 * series(mca_cs_series_g13, x);
-        q22 = 0.5f * qc * t3 * series(mca_cs_series_g22, x);
+        const size_t n = series_terms(x);
+        q11 = 0.5f * qc * t3 * t2 * series(mca_cs_series_g11, x, n);
+        q12 = 0.5f * qc * t2 * t2 * series(mca_cs_series_g12, x, n);
+        q13 = 0.5f * qc * t3 * series(mca_cs_series_g13, x, n);
+        q22 = 0.5f * qc * t3 * series(mca_cs_series_g22, x, n);
     } else {
         /* DESIGN.md 3, exact Singer forms; no cancellation worth a bit for x >= 2 */
         const float e = expf(-x), e2 = e * e;
@@ -157,7 +166,8 @@ void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[
     phi[0] = 1.0f;
     phi[1] = t;
     /* Phi13 = (alpha T - 1 + e)/alpha^2 = T^2 (x - 1 + e)/x^2 */
-    phi[2] = (x < MCA_CS_SERIES_X) ? t * t * series(mca_cs_series_phi13, x) : (x + em1) / (alpha * alpha);
+    phi[2] = (x < MCA_CS_SERIES_X) ? t * t * series(mca_cs_series_phi13, x, series_terms(x))
+                                   : (x + em1) / (alpha * alpha);
     phi[6] = 1.0f;
     phi[7] = -em1 / alpha; /* (1 - e)/alpha */
     phi[12] = 1.0f + em1;  /* e */
@@ -180,10 +190,34 @@ static int dt_ok(const mca_cs_config_t *cfg, float t)
     return isfinite(t) && t > 0.0f && t <= cfg->dt_max_s;
 }
 
-/* Predict with a T already validated. */
+/* rows 0..2 of P (stride 5) <- A3 rows, A3 = [[1, t, f13], [0, 1, f23], [0, 0, e]] */
+static void a3_rows(float *p, float t, float f13, float f23, float e)
+{
+    for (size_t j = 0; j < 5u; ++j) {
+        const float x0 = p[j], x1 = p[5u + j], x2 = p[10u + j];
+        p[j] = x0 + t * x1 + f13 * x2;
+        p[5u + j] = x1 + f23 * x2;
+        p[10u + j] = e * x2;
+    }
+}
+
+/* columns 0..2 of every row of P <- times A3^T */
+static void a3_cols(float *p, float t, float f13, float f23, float e)
+{
+    for (size_t i = 0; i < 5u; ++i) {
+        float *r = &p[5u * i];
+        const float x0 = r[0], x1 = r[1], x2 = r[2];
+        r[0] = x0 + t * x1 + f13 * x2;
+        r[1] = x1 + f23 * x2;
+        r[2] = e * x2;
+    }
+}
+
+/* Predict with a T already validated. Phi is block diagonal, [[A3, 0], [0, diag(eb, eg)]],
+ * so Phi P Phi^T is done in place by rows then columns (~80 multiplies instead of 250). */
 static void axis_predict(mca_cs_axis_t *ax, float t)
 {
-    float phi[25], q[25], tmp[25];
+    float phi[25], q[25];
     const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
     mca_cs_transition(&ax->cfg, t, s2, phi, q);
     /* mean: eq. 17, Phi1 = constant acceleration + Gauss-Markov decay of eps */
@@ -193,13 +227,24 @@ static void axis_predict(mca_cs_axis_t *ax, float t)
     ax->x[3] *= phi[18];
     ax->x[4] *= phi[24];
     /* covariance: Phi P Phi^T + Q */
-    mca_mat_mul(tmp, phi, ax->p, 5u, 5u, 5u);
-    mca_mat_mul_bt(ax->p, tmp, phi, 5u, 5u, 5u);
-    const float qs = ax->rs.q_scale; /* AKF (ALGORITHMS.md 5); 1 in the other modes */
-    for (size_t i = 0; i < 25u; ++i) {
-        ax->p[i] += qs * q[i];
+    float *p = ax->p;
+    a3_rows(p, t, phi[2], phi[7], phi[12]);
+    a3_cols(p, t, phi[2], phi[7], phi[12]);
+    for (size_t j = 0; j < 5u; ++j) { /* rows and columns 3, 4 scale by exp(-beta T), exp(-gamma T) */
+        p[15u + j] *= phi[18];
+        p[20u + j] *= phi[24];
+        p[5u * j + 3u] *= phi[18];
+        p[5u * j + 4u] *= phi[24];
     }
-    mca_mat_symmetrize(ax->p, 5u);
+    const float qs = ax->rs.q_scale; /* AKF (ALGORITHMS.md 5); 1 in the other modes */
+    for (size_t i = 0; i < 3u; ++i) {
+        for (size_t j = 0; j < 3u; ++j) {
+            p[5u * i + j] += qs * q[5u * i + j];
+        }
+    }
+    p[18] += qs * q[18];
+    p[24] += qs * q[24];
+    mca_mat_symmetrize(p, 5u);
     ax->s2_m2ps4 = s2;
 }
 

@@ -33,7 +33,8 @@ static void lat_sincos(int32_t e7, float *s, float *c)
     const int32_t a = e7 < 0 ? -e7 : e7;
     const int32_t k = a / 10000000;
     const float f = (float)(a - k * 10000000) * E7_TO_RAD;
-    const float sf = sinf(f), cf = cosf(f);
+    float sf, cf;
+    mca_sincosf(f, &sf, &cf);
     const float sk = mca_sin_deg[k], ck = mca_sin_deg[90 - k];
     const float sv = sk * cf + ck * sf;
     *c = ck * cf - sk * sf;
@@ -76,24 +77,26 @@ mca_status_t mca_geo_to_ned(const mca_geo_home_t *home, int32_t lat_e7, int32_t 
     } else if (dlon_e7 < -1800000000) {
         dlon_e7 += 3600000000LL;
     }
-    const float dphi = (float)dlat_e7 * E7_TO_RAD;
-    const float dlam = (float)dlon_e7 * E7_TO_RAD;
-    const float dh = (float)((int64_t)alt_mm - (int64_t)home->alt_mm) * 1e-3f;
+    /* all three fit in int32 (|dlat| <= 1.8e9, |dlon| <= 1.8e9 after the wrap, |dalt| < 1.1e8):
+     * int32 -> float is one instruction on the M4F, int64 -> float a library call */
+    const float dphi = (float)(int32_t)dlat_e7 * E7_TO_RAD;
+    const float dlam = (float)(int32_t)dlon_e7 * E7_TO_RAD;
+    const float dh = (float)(alt_mm - home->alt_mm) * 1e-3f;
     const float h0 = (float)home->alt_mm * 1e-3f;
     const float s0 = home->sin_lat, c0 = home->cos_lat;
     float s1, c1;
     lat_sincos(lat_e7, &s1, &c1);
     /* s1 - s0 = 2 cos(mean) sin(dphi/2), without cancellation */
     const float phim = lat_rad(home->lat_e7) + 0.5f * dphi;
-    const float ds = 2.0f * cosf(phim) * sinf(0.5f * dphi);
+    const float ds = 2.0f * mca_cosf(phim) * mca_sinf(0.5f * dphi);
     const float root1 = sqrtf(1.0f - WGS84_E2 * s1 * s1);
     const float n0 = home->n_m, n1 = WGS84_A / root1;
     const float dn = n0 * n1 * WGS84_E2 * ds * (s1 + s0) / (WGS84_A * (root1 + home->root));
     const float nh1 = n1 + h0 + dh;
-    const float sdl2 = sinf(0.5f * dlam), sdp2 = sinf(0.5f * dphi);
+    const float sdl2 = mca_sinf(0.5f * dlam), sdp2 = mca_sinf(0.5f * dphi);
     const float ecc = WGS84_E2 * (n1 * ds + dn * s0); /* e2 (N1 s1 - N0 s0) */
-    ned_m[1] = nh1 * c1 * sinf(dlam);
-    ned_m[0] = nh1 * (sinf(dphi) + 2.0f * s0 * c1 * sdl2 * sdl2) - c0 * ecc;
+    ned_m[1] = nh1 * c1 * mca_sinf(dlam);
+    ned_m[0] = nh1 * (mca_sinf(dphi) + 2.0f * s0 * c1 * sdl2 * sdl2) - c0 * ecc;
     const float up = dn + dh - nh1 * (2.0f * sdp2 * sdp2 + 2.0f * c0 * c1 * sdl2 * sdl2) - s0 * ecc;
     ned_m[2] = -up;
     return MCA_OK;
@@ -101,6 +104,7 @@ mca_status_t mca_geo_to_ned(const mca_geo_home_t *home, int32_t lat_e7, int32_t 
 
 float mca_geo_gravity(float lat, float h)
 {
-    const float s2 = sinf(lat) * sinf(lat);
+    const float sl = mca_sinf(lat);
+    const float s2 = sl * sl;
     return 9.7803253359f * (1.0f + 0.00193185265241f * s2) / sqrtf(1.0f - WGS84_E2 * s2) - 3.086e-6f * h;
 }

@@ -107,6 +107,34 @@ void mca_cholesky_solve(const float *l, float *b, size_t n)
     }
 }
 
+void mca_sincosf(float x, float *s, float *c)
+{
+    /* k = nearest integer to x / (pi/2); r = x - k pi/2 in three parts (exact products) */
+    const float kf = floorf(x * 0.636619772367581f + 0.5f);
+    const float r = ((x - kf * 1.5703125f) - kf * 4.837512969970703125e-4f) - kf * 7.54978995489188e-8f;
+    const float z = r * r;
+    const float sr = r + r * z * (-1.6666654611e-1f + z * (8.3321608736e-3f + z * -1.9515295891e-4f));
+    const float cr = 1.0f - 0.5f * z + z * z * (4.166664568298827e-2f + z * (-1.388731625493765e-3f +
+                                                                              z * 2.443315711809948e-5f));
+    const int32_t q = (int32_t)kf & 3;
+    *s = q == 0 ? sr : q == 1 ? cr : q == 2 ? -sr : -cr;
+    *c = q == 0 ? cr : q == 1 ? -sr : q == 2 ? -cr : sr;
+}
+
+float mca_sinf(float x)
+{
+    float s, c;
+    mca_sincosf(x, &s, &c);
+    return s;
+}
+
+float mca_cosf(float x)
+{
+    float s, c;
+    mca_sincosf(x, &s, &c);
+    return c;
+}
+
 void mca_quat_mul(float r[4], const float p[4], const float q[4])
 {
     r[0] = p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3];
@@ -142,8 +170,10 @@ void mca_quat_from_rotvec(float q[4], const float rv_rad[3])
         k = 0.5f - a2 * (1.0f / 48.0f) + a2 * a2 * (1.0f / 3840.0f);
         q[0] = 1.0f - a2 * (1.0f / 8.0f) + a2 * a2 * (1.0f / 384.0f);
     } else {
-        k = sinf(0.5f * a) / a;
-        q[0] = cosf(0.5f * a);
+        float sh, ch;
+        mca_sincosf(0.5f * a, &sh, &ch);
+        k = sh / a;
+        q[0] = ch;
     }
     q[1] = k * rv_rad[0];
     q[2] = k * rv_rad[1];
@@ -170,15 +200,16 @@ void mca_quat_to_euler(float e[3], const float q[4])
     e[0] = atan2f(2.0f * (w * x + y * z), 1.0f - 2.0f * (x * x + y * y));
     float s = 2.0f * (w * y - z * x);
     s = s > 1.0f ? 1.0f : (s < -1.0f ? -1.0f : s);
-    e[1] = asinf(s);
+    e[1] = atan2f(s, sqrtf(1.0f - s * s)); /* asin without another libm routine */
     e[2] = atan2f(2.0f * (w * z + x * y), 1.0f - 2.0f * (y * y + z * z));
 }
 
 void mca_quat_from_euler(float q[4], const float e[3])
 {
-    const float cr = cosf(0.5f * e[0]), sr = sinf(0.5f * e[0]);
-    const float cp = cosf(0.5f * e[1]), sp = sinf(0.5f * e[1]);
-    const float cy = cosf(0.5f * e[2]), sy = sinf(0.5f * e[2]);
+    float cr, sr, cp, sp, cy, sy;
+    mca_sincosf(0.5f * e[0], &sr, &cr);
+    mca_sincosf(0.5f * e[1], &sp, &cp);
+    mca_sincosf(0.5f * e[2], &sy, &cy);
     q[0] = cr * cp * cy + sr * sp * sy;
     q[1] = sr * cp * cy - cr * sp * sy;
     q[2] = cr * sp * cy + sr * cp * sy;

@@ -63,10 +63,19 @@ void mca_nav_config_multirotor(mca_nav_config_t *c)
     c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
 }
 
-/* A configured duration in integer microseconds (ALGORITHMS.md 8, Times). */
-static uint64_t us(float s)
+/* A configured duration in integer microseconds (ALGORITHMS.md 8, Times). Durations are
+ * checked to be far below 71 minutes, so uint32: one vcvt on the M4F, where float <-> 64-bit
+ * integer conversions are library calls through soft double. */
+static uint32_t us(float s)
 {
-    return (uint64_t)(s * 1e6f + 0.5f);
+    return (uint32_t)(s * 1e6f + 0.5f);
+}
+
+/* Seconds from a to b (b >= a) on the IMU clock, saturating at 71 minutes (uint32 us). */
+static float span_s(uint64_t a, uint64_t b)
+{
+    const uint64_t d = b - a;
+    return (float)(d > (uint64_t)UINT32_MAX ? UINT32_MAX : (uint32_t)d) * 1e-6f;
 }
 
 static int pos(float v)
@@ -297,7 +306,7 @@ static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
     float acc[3] = {0.0f, 0.0f, 0.0f};
     const uint8_t mode = nav->cfg.comp_mode;
     if (mode == MCA_COMP_CS && nav->have_fix) {
-        const float age = (float)(t_us - nav->t_lastfix_us) * 1e-6f;
+        const float age = span_s(nav->t_lastfix_us, t_us);
         for (size_t i = 0; i < 3u; ++i) {
             const float tau = i < 2u ? nav->cfg.cs_h.tau_a_s : nav->cfg.cs_v.tau_a_s;
             acc[i] = age <= 4.0f * tau ? nav->acc_comp_n[i] * expf(-age / tau) : 0.0f;
@@ -336,23 +345,24 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], con
     if (t_us <= nav->t_imu_us) {
         return MCA_ERR_TIME_BACKWARDS;
     }
-    const uint64_t dt_us = t_us - nav->t_imu_us;
-    const float dt = (float)dt_us * 1e-6f;
+    const uint64_t dt64 = t_us - nav->t_imu_us;
     nav->t_imu_us = t_us;
-    if (dt_us > us(nav->cfg.imu_dt_max_s)) {
+    if (dt64 > us(nav->cfg.imu_dt_max_s)) {
         return MCA_ERR_BAD_DT; /* re-anchored only */
     }
+    const uint32_t dt_us = (uint32_t)dt64;
+    const float dt = (float)dt_us * 1e-6f;
     const float sat = nav->cfg.accel_sat_mps2;
     const int saturated = fabsf(accel[0]) >= sat || fabsf(accel[1]) >= sat || fabsf(accel[2]) >= sat;
     if (saturated) {
         nav->flags |= MCA_FLAG_SATURATED;
     }
     if (!nav->aligned) {
-        accumulate_alignment(nav, gyro, accel, (uint32_t)dt_us);
+        accumulate_alignment(nav, gyro, accel, dt_us);
         return MCA_OK;
     }
     (void)mca_att_propagate(&nav->att, gyro, dt); /* inputs checked above */
-    hist_accumulate(nav, accel, (uint32_t)dt_us, saturated);
+    hist_accumulate(nav, accel, dt_us, saturated);
     if (gps_lost(nav, t_us) && t_us - nav->t_lastgrav_us >= us(nav->cfg.grav_period_s)) {
         nav_nogps_observation(nav, gyro);
     }
@@ -404,7 +414,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
     } else {
         float ned[3];
         (void)mca_geo_to_ned(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : nav->home.alt_mm, ned);
-        const float t = (float)(fix->t_us - nav->t_lastfix_us) * 1e-6f;
+        const float t = span_s(nav->t_lastfix_us, fix->t_us);
         if (t > nav->cfg.cs_h.dt_max_s || t > nav->cfg.cs_v.dt_max_s) {
             (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel);
             memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
@@ -419,11 +429,20 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                                                (has_vd ? MCA_CS_VEL : 0u))};
             const float rp[3] = {h_acc * h_acc, h_acc * h_acc, v_acc * v_acc};
             const float rv[3] = {s_acc * s_acc, s_acc * s_acc, s_acc * s_acc};
-            mca_update_report_t rep[3];
-            st = mca_cs3_update(&nav->cs, ned, vel, rp, rv, mask, nav->ws, rep);
+            /* Axis by axis with one report (a report is 212 B of stack). Every input was checked
+             * above and the masks are well formed, so an axis can fail only numerically, and
+             * then it is left unchanged (mca_cs_axis_update is atomic). */
+            mca_update_report_t rep;
             for (size_t i = 0; i < 3u; ++i) {
-                if (mask[i] != 0u) {
-                    nav->last_gps_t[i] = rep[i].t_stat;
+                if (mask[i] == 0u) {
+                    continue;
+                }
+                const mca_status_t su = mca_cs_axis_update(&nav->cs.axis[i], ned[i], vel[i], rp[i], rv[i], mask[i],
+                                                           nav->ws, &rep);
+                if (su == MCA_OK) {
+                    nav->last_gps_t[i] = rep.t_stat;
+                } else if (st == MCA_OK) {
+                    st = su;
                 }
             }
             if (st != MCA_OK) {
@@ -442,7 +461,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                 r_acc = (nav->cs.axis[0].p[12] + nav->cs.axis[1].p[12]) / (2.0f * g2);
                 e = hist_find(nav, (int64_t)fix->t_us - (int64_t)us(nav->cfg.cs_lag_s));
             } else if (nav->cfg.comp_mode == MCA_COMP_VELDIFF) {
-                const float dtf = (float)(fix->t_us - nav->t_prevfix_us) * 1e-6f;
+                const float dtf = span_s(nav->t_prevfix_us, fix->t_us);
                 if (fix->t_us - nav->t_prevfix_us > us(nav->cfg.gps_timeout_s)) {
                     observe = 0;
                     if (nav->aligned) {
@@ -526,7 +545,11 @@ void mca_nav_output(const mca_nav_t *nav, mca_nav_output_t *out)
     memcpy(out->q_nb, nav->att.q_nb, sizeof(out->q_nb));
     mca_quat_to_euler(out->euler_rad, nav->att.q_nb);
     memcpy(out->gyro_bias_rps, nav->att.bias_rps, sizeof(out->gyro_bias_rps));
-    const float tau = nav->have_fix ? ((float)((int64_t)nav->t_imu_us - (int64_t)nav->t_lastfix_us) * 1e-6f) : 0.0f;
+    float tau = 0.0f; /* extrapolation time of the CS state, negative when the fix is newer */
+    if (nav->have_fix) {
+        tau = nav->t_imu_us >= nav->t_lastfix_us ? span_s(nav->t_lastfix_us, nav->t_imu_us)
+                                                  : -span_s(nav->t_imu_us, nav->t_lastfix_us);
+    }
     for (size_t i = 0; i < 3u; ++i) {
         const mca_cs_axis_t *ax = &nav->cs.axis[i];
         out->pos_ned_m[i] = ax->x[0] + ax->x[1] * tau + 0.5f * ax->x[2] * tau * tau;

@@ -79,6 +79,15 @@ void mca_quat_to_euler(float euler_rad[3], const float q_nb[4]);
 /** q_nb from ZYX Euler angles {phi, theta, psi} (rad). */
 void mca_quat_from_euler(float q_nb[4], const float euler_rad[3]);
 
+/**
+ * sin and cos of x (rad), |x| < 1e4: Cody-Waite reduction by pi/2 and minimax polynomials
+ * on [-pi/4, pi/4] (Cephes), ~1 ulp. The core's own, so host and target compute the same
+ * bits and the firmware does not link newlib's 3 KiB large-argument reduction.
+ */
+void mca_sincosf(float x, float *s, float *c);
+float mca_sinf(float x);
+float mca_cosf(float x);
+
 /** Wrap an angle to [-pi, pi). */
 float mca_wrap_pi(float a_rad);
 
