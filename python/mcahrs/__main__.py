@@ -1,0 +1,5 @@
+"""`python -m mcahrs ...` is the `mcahrs` command."""
+
+from mcahrs.cli import main
+
+raise SystemExit(main())
