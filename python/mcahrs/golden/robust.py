@@ -41,6 +41,7 @@ __all__ = [
     "RobustReport",
     "RobustState",
     "UpdateReport",
+    "akf_alpha",
     "akf_inflated_noise",
     "akf_q_scale",
     "akf_row_statistics",
@@ -175,3 +176,605 @@ def kf_update(
         raise NonFiniteError("update produced a non-finite state")
 
     return x_plus, P_plus, UpdateReport(m=m, nu=nu, C=C, T=T)
+
+
+# ======================================================================================
+# Robust and adaptive modes (ALGORITHMS.md 5, DESIGN.md 5)
+# ======================================================================================
+
+MODES = ("plain", "fta", "akf", "fuzzy", "igg3")
+MODE_NUMBERS = {name: number for number, name in enumerate(MODES)}  # mca_robust_config_t.mode
+M_MAX = 6  # largest measurement size of a robust update; memory keeps one entry per row
+
+FTA_ALPHA = 1e-4  # paper 000: significance level of the FTA test
+AKF_ALPHA = 1e-2  # ALGORITHMS.md 5: significance level of the AKF detection
+FUZZY_TD1_ALPHA = 0.025  # paper 001: TD1 = chi2_m(0.025), "no outlier" below it
+FUZZY_TD2_ALPHA = 0.005  # paper 001: TD2 = chi2_m(0.005), the usual single threshold
+FUZZY_TD3_OVER_TD2 = 10.0  # paper 001: TD3 = 10 TD2, "outlier" above it
+
+
+@dataclass
+class RobustConfig:
+    """Run-time choice of the update mode and its parameters (``mca_robust_config_t``).
+
+    mode: one of ``MODES``; fuzzy_reject: while the fuzzy detector alarms, reject the update
+    (True) or inflate it as FTA with ``gamma = max(1, T / TD2)`` (False); akf_window: n, the
+    number of epochs of eq. 18; akf_forget: b, the forgetting factor of the AKF row
+    statistics; akf_q_min / akf_q_max: clamp of the Q scale of eq. 19; igg_k0 / igg_k1: the
+    IGG-III thresholds on the standardised residual.
+    """
+
+    mode: str = "plain"
+    fuzzy_reject: bool = True
+    akf_window: int = 8
+    akf_forget: float = 0.2
+    akf_q_min: float = 0.5
+    akf_q_max: float = 10.0
+    igg_k0: float = 1.5
+    igg_k1: float = 3.0
+
+    def validate(self) -> None:
+        """Raise BadConfigError unless every field is in its documented range.
+
+        All fields are checked whatever the mode (a configuration is valid or not as a whole).
+        The upper bound of akf_window is the C core's compile-time MCA_AKF_WINDOW; the golden
+        model has no such limit.
+        """
+        if self.mode not in MODES:
+            raise BadConfigError(f"mode must be one of {MODES}, got {self.mode!r}")
+        if self.fuzzy_reject not in (0, 1):  # True/False compare equal to 1/0
+            raise BadConfigError(f"fuzzy_reject must be a bool, got {self.fuzzy_reject!r}")
+        n = self.akf_window
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise BadConfigError(f"akf_window must be an integer >= 1, got {n!r}")
+        numbers = {
+            name: getattr(self, name) for name in ("akf_forget", "akf_q_min", "akf_q_max", "igg_k0", "igg_k1")
+        }
+        for name, v in numbers.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise BadConfigError(f"{name} must be a number, got {v!r}")
+            if not math.isfinite(v):
+                raise BadConfigError(f"{name} must be finite, got {v!r}")
+        if not 0.0 < self.akf_forget <= 1.0:
+            raise BadConfigError(f"akf_forget must be in (0, 1], got {self.akf_forget!r}")
+        if not 0.0 < self.akf_q_min <= self.akf_q_max:
+            raise BadConfigError(
+                f"need 0 < akf_q_min <= akf_q_max, got {self.akf_q_min!r}, {self.akf_q_max!r}"
+            )
+        if not 0.0 < self.igg_k0 < self.igg_k1:
+            raise BadConfigError(f"need 0 < igg_k0 < igg_k1, got {self.igg_k0!r}, {self.igg_k1!r}")
+
+
+@dataclass
+class RobustState:
+    """Memory of one filter's robust update (``mca_robust_state_t``), changed in place.
+
+    win: the last ``akf_window`` values of ``e = nu^T nu - tr(R)`` (oldest first);
+    nu_mean, nu_var: per-row running innovation mean r_i and variance s_i (AKF, M_MAX rows);
+    q_scale: the AKF process-noise scale the filter applies at its next predict;
+    d_k: the fuzzy detector's smoothed statistic D; alarm: the fuzzy alarm;
+    started: the AKF row statistics have seen their first update.
+    """
+
+    win: list[float] = field(default_factory=list)
+    nu_mean: np.ndarray = field(default_factory=lambda: np.zeros(M_MAX))
+    nu_var: np.ndarray = field(default_factory=lambda: np.zeros(M_MAX))
+    q_scale: float = 1.0
+    d_k: float = 0.0
+    alarm: bool = False
+    started: bool = False
+
+
+@dataclass(frozen=True)
+class RobustReport(UpdateReport):
+    """What a robust update reports (ALGORITHMS.md 5), on top of ``UpdateReport``.
+
+    factor: FTA gamma, the fuzzy gamma applied, AKF tr(R*)/tr(R); 1 where not used.
+    w: IGG-III weight of each row (m,); 1 where not used.
+    q_scale: the AKF Q scale after this update; 1 in the other modes.
+    detected: FTA gamma > 1, AKF T > chi2_m(1e-2), fuzzy alarm, IGG-III any w_i < 1; else False.
+    rejected: the update was not applied (x and P unchanged): fuzzy alarm with reject, or
+    IGG-III with every row removed.
+    alarm: the fuzzy alarm after this epoch's test; False in the other modes.
+    """
+
+    factor: float
+    w: np.ndarray
+    q_scale: float
+    detected: bool
+    rejected: bool
+    alarm: bool
+
+
+# --------------------------------------------------------------------------------------
+# Chi-square quantiles
+# --------------------------------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=64)
+def chi2_quantile(a: float, m: int) -> float:
+    """chi2_m(a): the upper-a quantile of chi-square with m degrees of freedom."""
+    from scipy.stats import chi2  # lazy: only the robust modes need scipy
+
+    return float(chi2.ppf(1.0 - a, m))
+
+
+# --------------------------------------------------------------------------------------
+# FTA (paper 000)
+# --------------------------------------------------------------------------------------
+
+
+def fta_gamma(T: float, m: int) -> float:
+    """Eq. 13: gamma = 1 if T <= chi2_m(1e-4), else T / chi2_m(1e-4) (T >= 0, so |T| = T)."""
+    threshold = chi2_quantile(FTA_ALPHA, m)
+    return 1.0 if T <= threshold else T / threshold
+
+
+# --------------------------------------------------------------------------------------
+# AKF (paper 004)
+# --------------------------------------------------------------------------------------
+
+
+def akf_row_statistics(
+    r: np.ndarray, s: np.ndarray, nu: np.ndarray, b: float, first: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """Recursive eq. 15-16 with forgetting b: per row mean r_i and variance s_i.
+
+    First update of a memory: r = nu, s = 0. Then r = (1 - b) r + b nu and
+    s = (1 - b) s + b (nu - r)^2 with the new r. Returns new arrays.
+    """
+    nu = np.asarray(nu, dtype=np.float64)
+    if first:
+        return nu.copy(), np.zeros_like(nu)
+    r_new = (1.0 - b) * np.asarray(r, dtype=np.float64) + b * nu
+    s_new = (1.0 - b) * np.asarray(s, dtype=np.float64) + b * (nu - r_new) ** 2
+    return r_new, s_new
+
+
+def akf_inflated_noise(R: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Eq. 15 at a detected outlier: R* = R + diag(s_i)."""
+    return np.asarray(R, dtype=np.float64) + np.diag(np.asarray(s, dtype=np.float64))
+
+
+def akf_alpha(window: list[float] | np.ndarray, trace_hph: float) -> float:
+    """Eq. 18: alpha = tr(mean of the last n nu nu^T - R) / tr(H P H^T) = mean(window) / tr(H P H^T).
+
+    IEEE division: a zero denominator gives +-inf (0/0: NaN), which eq. 19 maps into its clamp.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return float(np.float64(np.mean(window)) / np.float64(trace_hph))
+
+
+def akf_q_scale(alpha: float, q_min: float, q_max: float) -> float:
+    """Eq. 19: Q <- log2(alpha + 1) Q, the factor clamped to [q_min, q_max].
+
+    log2 of max(alpha + 1, tiny), so alpha <= -1 (and NaN, like C's fmax) give q_min.
+    """
+    arg = float(np.fmax(alpha + 1.0, np.finfo(np.float64).tiny))
+    return min(max(math.log2(arg), q_min), q_max)
+
+
+# --------------------------------------------------------------------------------------
+# Fuzzy three-threshold detector (paper 001)
+# --------------------------------------------------------------------------------------
+
+
+def fuzzy_thresholds(m: int) -> tuple[float, float, float]:
+    """TD1 = chi2_m(0.025), TD2 = chi2_m(0.005), TD3 = 10 TD2 (section 2.3 of the paper)."""
+    td2 = chi2_quantile(FUZZY_TD2_ALPHA, m)
+    return chi2_quantile(FUZZY_TD1_ALPHA, m), td2, FUZZY_TD3_OVER_TD2 * td2
+
+
+def fuzzy_memberships(T: float, td1: float, td2: float, td3: float) -> tuple[float, float, float]:
+    """Eq. 10: degrees of membership (DOM_H, DOM_M, DOM_D) of T; each piecewise linear."""
+    if T < td1:
+        dom_h = 1.0
+    elif T <= td2:
+        dom_h = (td2 - T) / (td2 - td1)
+    else:
+        dom_h = 0.0
+
+    if td1 < T <= td2:
+        dom_m = (T - td1) / (td2 - td1)
+    elif td2 <= T < td3:
+        dom_m = (td3 - T) / (td3 - td2)
+    else:
+        dom_m = 0.0
+
+    if T < td2:
+        dom_d = 0.0
+    elif T <= td3:
+        dom_d = (T - td2) / (td3 - td2)
+    else:
+        dom_d = 1.0
+    return dom_h, dom_m, dom_d
+
+
+def fuzzy_mu(T: float, m: int) -> float:
+    """Eq. 11: mu = a_H DOM_H + a_M DOM_M + a_D DOM_D with a_H = TD1/TD3, a_M = 0.5, a_D = 1.
+
+    So mu(TD1) = a_H, mu(TD2) = 0.5, mu(T >= TD3) = 1.
+    """
+    td1, td2, td3 = fuzzy_thresholds(m)
+    dom_h, dom_m, dom_d = fuzzy_memberships(T, td1, td2, td3)
+    return (td1 / td3) * dom_h + 0.5 * dom_m + 1.0 * dom_d
+
+
+def fuzzy_detector_step(d_prev: float, alarm_prev: bool, T: float, m: int) -> tuple[float, bool, float]:
+    """Eq. 12 and the alarm rules of paper 001 section 2.2. Returns (D_k, alarm, mu_k).
+
+    D_k = D_{k-1} / 2 + mu_k. No alarm and D_k > 1: alarm. Alarm, T < TD2 and D_k < 1:
+    release and D_k = 0. (From D = 0, two consecutive T > TD3 give D = 1 then 1.5: alarm on
+    the second, as the paper states; after clean epochs D ~ 2 a_H, so one T > TD3 alarms.)
+    """
+    _, td2, _ = fuzzy_thresholds(m)
+    mu = fuzzy_mu(T, m)
+    d = d_prev / 2.0 + mu
+    alarm = bool(alarm_prev)
+    if not alarm and d > 1.0:
+        alarm = True
+    elif alarm and T < td2 and d < 1.0:
+        alarm = False
+        d = 0.0
+    return d, alarm, mu
+
+
+# --------------------------------------------------------------------------------------
+# IGG-III (paper 003)
+# --------------------------------------------------------------------------------------
+
+
+def igg_weight(s: float, k0: float, k1: float) -> float:
+    """IGG-III weight of a standardised residual s: 1 (s <= k0), (k0/s)((k1 - s)/(k1 - k0))^2
+    (k0 < s <= k1), 0 (s > k1)."""
+    if s <= k0:
+        return 1.0
+    if s <= k1:
+        return (k0 / s) * ((k1 - s) / (k1 - k0)) ** 2
+    return 0.0
+
+
+def igg_reweight(
+    nu: np.ndarray, hph: np.ndarray, R: np.ndarray, k0: float, k1: float
+) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The IGG-III iteration of ALGORITHMS.md 5: largest standardised residual first.
+
+    At most m rounds: among rows whose weight is not fixed yet, take the largest
+    s_i = |nu_i| / sqrt(C_ii) (lowest index on ties); stop if it is <= k0; else fix
+    w_i = w(s_i) and replace R_ii by R_ii / w_i (w_i = 0 removes the row); recompute C over
+    the kept rows and the s of the others.
+
+    Note: with innovation residuals C_ii = (H P H^T)_ii + R_ii depends on row i alone, so the
+    recomputed s of the rows not yet weighted never changes; the result equals one pass of
+    w(s_i) over all rows. The loop is kept as written so the C core's loop can be checked
+    against it (and so the order is reported).
+
+    Returns (w (m,), R_eq (m, m) equivalent noise, valid on the kept rows w > 0, order of the
+    rows weighted).
+    """
+    nu = np.asarray(nu, dtype=np.float64)
+    m = nu.shape[0]
+    w = np.ones(m)
+    fixed = np.zeros(m, dtype=bool)
+    R_eq = np.array(R, dtype=np.float64)
+    order: list[int] = []
+    for _ in range(m):
+        kept = w > 0.0
+        C = hph + R_eq  # over the kept rows; removed rows are masked out below
+        s = np.full(m, -np.inf)
+        open_rows = kept & ~fixed
+        s[open_rows] = np.abs(nu[open_rows]) / np.sqrt(np.diag(C)[open_rows])
+        if not open_rows.any():
+            break
+        i = int(np.argmax(s))  # first maximum: lowest index on ties
+        if s[i] <= k0:
+            break
+        w[i] = igg_weight(float(s[i]), k0, k1)
+        fixed[i] = True
+        order.append(i)
+        if w[i] > 0.0:
+            R_eq[i, i] = R_eq[i, i] / w[i]
+    return w, R_eq, order
+
+
+# --------------------------------------------------------------------------------------
+# Shared steps of section 1
+# --------------------------------------------------------------------------------------
+
+
+def _checked_inputs(
+    x: object, P: object, H: object, z: object, R: object
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The argument checks of kf_update, plus m <= M_MAX (the size of the memory)."""
+    x = _as_float_array("x", x, 1)
+    P = _as_float_array("P", P, 2)
+    H = _as_float_array("H", H, 2)
+    z = _as_float_array("z", z, 1)
+    R = np.array(R, dtype=np.float64)
+    n, m = x.shape[0], z.shape[0]
+    if R.ndim == 1:
+        R = np.diag(R)
+    if m == 0 or P.shape != (n, n) or H.shape != (m, n) or R.shape != (m, m):
+        raise BadArgError(
+            f"inconsistent shapes: x {x.shape}, P {P.shape}, H {H.shape}, z {z.shape}, R {R.shape}"
+        )
+    if m > M_MAX:
+        raise BadArgError(f"a robust update takes at most {M_MAX} rows, got {m}")
+    for name, a in (("x", x), ("P", P), ("H", H), ("z", z), ("R", R)):
+        if not np.all(np.isfinite(a)):
+            raise NonFiniteError(f"{name} is not finite")
+    _check_symmetric("P", P)
+    _check_symmetric("R", R)
+    return x, P, H, z, R
+
+
+def _cholesky(C: np.ndarray) -> np.ndarray:
+    """Section 1 step 2: C = L L^T, or SINGULAR."""
+    if not np.all(np.isfinite(C)):
+        raise NonFiniteError("innovation covariance overflowed")
+    try:
+        L = np.linalg.cholesky(C)
+    except np.linalg.LinAlgError as exc:
+        raise SingularError("innovation covariance is not positive definite") from exc
+    if not np.all(np.diag(L) > 0.0):
+        raise SingularError("innovation covariance is not positive definite")
+    return L
+
+
+def _innovation(
+    x: np.ndarray, P: np.ndarray, H: np.ndarray, z: np.ndarray, R: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Section 1 steps 1-3 with the nominal R: nu, C = H P H^T + R, T = nu^T C^-1 nu.
+
+    An innovation that overflows (finite x and z far apart) is NONFINITE here, before any mode
+    runs: kf_update would end at step 6 with a non-finite x+ anyway, and this keeps the modes
+    alike (IGG-III would otherwise silently remove an infinite residual's row).
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        nu = z - H @ x
+    if not np.all(np.isfinite(nu)):
+        raise NonFiniteError("innovation overflowed")
+    C = H @ P @ H.T + R
+    y = _forward_substitution(_cholesky(C), nu)
+    return nu, C, float(y @ y)
+
+
+def _gain_update(
+    x: np.ndarray, P: np.ndarray, H: np.ndarray, nu: np.ndarray, C_gain: np.ndarray, R_joseph: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Section 1 steps 4-6: K = P H^T C_gain^-1, x+ = x + K nu, Joseph with R_joseph, symmetrise.
+
+    Plain: C_gain = C, R_joseph = R. FTA: gamma C and the nominal R (Joseph holds for any gain).
+    AKF: H P H^T + R* and R*. IGG-III: the kept rows and their equivalent R.
+    """
+    L = _cholesky(C_gain)
+    K = _back_substitution(L.T, _forward_substitution(L, H @ P)).T
+    x_plus = x + K @ nu
+    I_KH = np.eye(x.shape[0]) - K @ H
+    P_plus = I_KH @ P @ I_KH.T + K @ R_joseph @ K.T
+    P_plus = 0.5 * (P_plus + P_plus.T)
+    if not (np.all(np.isfinite(x_plus)) and np.all(np.isfinite(P_plus))):
+        raise NonFiniteError("update produced a non-finite state")
+    return x_plus, P_plus
+
+
+# --------------------------------------------------------------------------------------
+# The modes
+# --------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Step:
+    """One update's inputs after steps 1-3 (shared by every mode)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    nu: np.ndarray
+    C: np.ndarray
+    T: float
+
+    @property
+    def m(self) -> int:
+        return int(self.nu.shape[0])
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """What a mode adds to the report; the defaults are the values of a mode that does not use them."""
+
+    w: np.ndarray
+    factor: float = 1.0
+    q_scale: float = 1.0
+    detected: bool = False
+    rejected: bool = False
+    alarm: bool = False
+
+
+_Result = tuple[np.ndarray, np.ndarray, _Outcome]
+
+
+def _outcome(
+    m: int,
+    w: np.ndarray | None = None,
+    factor: float = 1.0,
+    q_scale: float = 1.0,
+    detected: bool = False,
+    rejected: bool = False,
+    alarm: bool = False,
+) -> _Outcome:
+    """The outcome of an m-row update; w defaults to all ones."""
+    w = np.ones(m) if w is None else w
+    return _Outcome(w, float(factor), float(q_scale), bool(detected), bool(rejected), bool(alarm))
+
+
+def _update_plain(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
+    """Mode 0: section 1."""
+    x, P = _gain_update(step.x, step.P, step.H, step.nu, step.C, step.R)
+    return x, P, _outcome(step.m)
+
+
+def _update_fta(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
+    """Mode 1, paper 000: K = P H^T (gamma C)^-1 (eq. 15), Joseph with the nominal R (eq. 16)."""
+    gamma = fta_gamma(step.T, step.m)
+    x, P = _gain_update(step.x, step.P, step.H, step.nu, gamma * step.C, step.R)
+    return x, P, _outcome(step.m, factor=gamma, detected=gamma > 1.0)
+
+
+def _update_akf(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
+    """Mode 2, paper 004 (ALGORITHMS.md 5 AKF steps 1-4)."""
+    m = step.m
+    # 1. Row statistics of the innovation (rows 0..m-1 of this update; the others keep theirs).
+    r, s = akf_row_statistics(
+        memory.nu_mean[:m], memory.nu_var[:m], step.nu, cfg.akf_forget, first=not memory.started
+    )
+    memory.nu_mean[:m], memory.nu_var[:m], memory.started = r, s, True
+    # 2. Detection and R* (eq. 14-15).
+    detected = step.T > chi2_quantile(AKF_ALPHA, m)
+    R_star = akf_inflated_noise(step.R, s) if detected else step.R
+    tr_r, tr_r_star = float(np.trace(step.R)), float(np.trace(R_star))
+    if tr_r > 0.0:
+        factor = tr_r_star / tr_r
+    else:  # R = 0: no ratio; 1 when R* is R, else unbounded
+        factor = 1.0 if tr_r_star == tr_r else math.inf
+    # 3. Window of e = nu^T nu - tr(R), alpha (eq. 18) and the Q scale (eq. 19), for the next predict.
+    e = float(step.nu @ step.nu) - tr_r
+    memory.win = ([*memory.win, e])[-cfg.akf_window :]
+    hph = step.H @ step.P @ step.H.T
+    memory.q_scale = akf_q_scale(akf_alpha(memory.win, float(np.trace(hph))), cfg.akf_q_min, cfg.akf_q_max)
+    # 4. Section 1 steps 4-6 with R*.
+    x, P = _gain_update(step.x, step.P, step.H, step.nu, hph + R_star, R_star)
+    return x, P, _outcome(m, factor=factor, q_scale=memory.q_scale, detected=detected)
+
+
+def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
+    """Mode 3, paper 001: test first, then reject / inflate while alarmed, else section 1."""
+    memory.d_k, memory.alarm, _ = fuzzy_detector_step(memory.d_k, memory.alarm, step.T, step.m)
+    if not memory.alarm:
+        x, P = _gain_update(step.x, step.P, step.H, step.nu, step.C, step.R)
+        return x, P, _outcome(step.m)
+    if cfg.fuzzy_reject:
+        return step.x, step.P, _outcome(step.m, detected=True, rejected=True, alarm=True)
+    _, td2, _ = fuzzy_thresholds(step.m)
+    gamma = max(1.0, step.T / td2)
+    x, P = _gain_update(step.x, step.P, step.H, step.nu, gamma * step.C, step.R)
+    return x, P, _outcome(step.m, factor=gamma, detected=True, alarm=True)
+
+
+def _update_igg3(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
+    """Mode 4, paper 003: reweight rows, then section 1 on the kept rows with the equivalent R."""
+    hph = step.H @ step.P @ step.H.T
+    w, R_eq, _ = igg_reweight(step.nu, hph, step.R, cfg.igg_k0, cfg.igg_k1)
+    detected = bool(np.any(w < 1.0))
+    kept = np.flatnonzero(w > 0.0)
+    if kept.size == 0:
+        return step.x, step.P, _outcome(step.m, w=w, detected=True, rejected=True)
+    H_k, R_k = step.H[kept], R_eq[np.ix_(kept, kept)]
+    x, P = _gain_update(step.x, step.P, H_k, step.nu[kept], H_k @ step.P @ H_k.T + R_k, R_k)
+    return x, P, _outcome(step.m, w=w, detected=detected)
+
+
+_MODE_UPDATES = {
+    "plain": _update_plain,
+    "fta": _update_fta,
+    "akf": _update_akf,
+    "fuzzy": _update_fuzzy,
+    "igg3": _update_igg3,
+}
+
+
+def _working_copy(state: RobustState) -> RobustState:
+    """A checked deep copy of the memory: the mode works on it, the caller's is replaced on success."""
+    nu_mean = np.array(state.nu_mean, dtype=np.float64)
+    nu_var = np.array(state.nu_var, dtype=np.float64)
+    if nu_mean.shape != (M_MAX,) or nu_var.shape != (M_MAX,):
+        raise BadArgError(f"state.nu_mean and state.nu_var must have shape ({M_MAX},)")
+    memory = RobustState(
+        win=[float(v) for v in state.win],
+        nu_mean=nu_mean,
+        nu_var=nu_var,
+        q_scale=float(state.q_scale),
+        d_k=float(state.d_k),
+        alarm=bool(state.alarm),
+        started=bool(state.started),
+    )
+    if not _memory_is_finite(memory):
+        raise NonFiniteError("robust state is not finite")
+    return memory
+
+
+def _memory_is_finite(memory: RobustState) -> bool:
+    scalars = [*memory.win, memory.q_scale, memory.d_k]
+    return bool(
+        np.all(np.isfinite(memory.nu_mean))
+        and np.all(np.isfinite(memory.nu_var))
+        and np.all(np.isfinite(scalars))
+    )
+
+
+def robust_update(
+    x: np.ndarray,
+    P: np.ndarray,
+    H: np.ndarray,
+    z: np.ndarray,
+    R: np.ndarray,
+    cfg: RobustConfig,
+    state: RobustState,
+) -> tuple[np.ndarray, np.ndarray, RobustReport]:
+    """Measurement update in the mode ``cfg.mode`` (ALGORITHMS.md 5).
+
+    Steps 1-3 of section 1 with the nominal R (nu, C, Cholesky, T), then the mode. ``state``
+    is updated in place, and only when the whole update succeeds.
+
+    Args:
+        x, P, H, z, R: as ``kf_update`` (R full (m, m) or its diagonal (m,)); m <= M_MAX.
+        cfg: the mode and its parameters.
+        state: the filter's robust memory.
+
+    Returns:
+        (x_plus, P_plus, report): new arrays (a rejected update returns copies of x and P).
+
+    Raises:
+        BadConfigError: cfg out of range.
+        BadArgError: shapes inconsistent, m == 0 or m > M_MAX, P / R not symmetric, or a
+            state of the wrong shape.
+        NonFiniteError: an input or the state is NaN/Inf, the innovation overflows, or x+, P+
+            or the memory would be non-finite.
+        SingularError: C (or the gain's innovation covariance) is not positive definite.
+    """
+    cfg.validate()
+    x, P, H, z, R = _checked_inputs(x, P, H, z, R)
+    memory = _working_copy(state)
+    nu, C, T = _innovation(x, P, H, z, R)
+    step = _Step(x=x, P=P, H=H, R=R, nu=nu, C=C, T=T)
+    with np.errstate(over="ignore", invalid="ignore"):  # every result is checked for finiteness
+        x_plus, P_plus, outcome = _MODE_UPDATES[cfg.mode](step, cfg, memory)
+    # Step 6 extended to the memory: an update that would leave it non-finite (AKF e = nu^T nu
+    # overflowing) changes nothing, like one that would leave x+ or P+ non-finite.
+    if not _memory_is_finite(memory):
+        raise NonFiniteError("update would leave a non-finite robust memory")
+    # Commit: the only place the caller's memory changes.
+    state.win, state.nu_mean, state.nu_var = memory.win, memory.nu_mean, memory.nu_var
+    state.q_scale, state.d_k, state.alarm, state.started = (
+        memory.q_scale,
+        memory.d_k,
+        memory.alarm,
+        memory.started,
+    )
+    return (
+        x_plus,
+        P_plus,
+        RobustReport(
+            m=step.m,
+            nu=nu,
+            C=C,
+            T=T,
+            factor=float(outcome.factor),
+            w=outcome.w,
+            q_scale=float(outcome.q_scale),
+            detected=bool(outcome.detected),
+            rejected=bool(outcome.rejected),
+            alarm=bool(outcome.alarm),
+        ),
+    )
