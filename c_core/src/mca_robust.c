@@ -1,7 +1,18 @@
-/* The one Kalman measurement update (docs/ALGORITHMS.md section 1). See mca_robust.h. */
+/* The one Kalman measurement update and its robust/adaptive modes (docs/ALGORITHMS.md
+ * sections 1 and 5). See mca_robust.h. */
 #include "mcahrs/mca_robust.h"
 
+#include <math.h>
 #include <string.h>
+
+/* static const float mca_chi2_table[6][4]: rows m = 1..6, columns mca_chi2_level_t. */
+#include "mca_chi2_table.inc"
+
+/* The generated table must cover every measurement size and every level. */
+typedef char mca_chi2_rows_ok[(sizeof(mca_chi2_table) / sizeof(mca_chi2_table[0]) == MCA_MEAS_MAX) ? 1 : -1];
+typedef char mca_chi2_cols_ok[(sizeof(mca_chi2_table[0]) / sizeof(float) == (size_t)MCA_CHI2_LEVELS) ? 1 : -1];
+/* Row bit masks below are unsigned ints. */
+typedef char mca_meas_bits_ok[(MCA_MEAS_MAX <= 16) ? 1 : -1];
 
 void mca_robust_config_default(mca_robust_config_t *cfg)
 {
@@ -21,6 +32,7 @@ mca_status_t mca_robust_config_check(const mca_robust_config_t *c)
     if (c == NULL) {
         return MCA_ERR_NULL;
     }
+    /* akf_q_min > 0 also makes the AKF "tiny" of eq. 19 irrelevant (see akf_q_scale). */
     if (c->mode > (uint8_t)MCA_ROBUST_IGG3 || c->fuzzy_reject > 1u || c->akf_window < 1u ||
         c->akf_window > MCA_AKF_WINDOW || !(c->akf_forget > 0.0f && c->akf_forget <= 1.0f) ||
         !(c->akf_q_min > 0.0f) || !(c->akf_q_max >= c->akf_q_min) || !(c->igg_k0 > 0.0f) ||
@@ -36,82 +48,389 @@ void mca_robust_state_init(mca_robust_state_t *st)
     st->q_scale = 1.0f;
 }
 
-mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const float *z,
-                           const float *r, size_t m, const mca_robust_config_t *rc,
-                           mca_robust_state_t *rs, float *ws, size_t ws_len,
-                           mca_update_report_t *rep)
+float mca_chi2_quantile(size_t m, mca_chi2_level_t level)
 {
-    (void)rc; /* modes other than plain: robust-layer work, ALGORITHMS.md 5 */
-    (void)rs;
-    if (x == NULL || p == NULL || h == NULL || z == NULL || r == NULL || ws == NULL) {
-        return MCA_ERR_NULL;
+    if (m < 1u || m > MCA_MEAS_MAX || (unsigned)level >= (unsigned)MCA_CHI2_LEVELS) {
+        return 0.0f;
     }
-    if (m == 0u || m > MCA_MEAS_MAX || n == 0u || ws_len < (size_t)MCA_KF_WS_LEN(n, m)) {
-        return MCA_ERR_BAD_ARG;
-    }
-    if (!mca_all_finite(z, m) || !mca_all_finite(r, m * m)) {
-        return MCA_ERR_NONFINITE;
-    }
-    /* Scratch layout: a, b, pn (n x n); pht, k (n x m); c, l (m x m); xn (n); y (m). */
-    float *a = ws;
-    float *b = a + n * n;
-    float *pn = b + n * n;
-    float *pht = pn + n * n;
-    float *k = pht + n * m;
-    float *c = k + n * m;
-    float *l = c + m * m;
-    float *xn = l + m * m;
-    float *y = xn + n;
+    return mca_chi2_table[m - 1u][(unsigned)level];
+}
 
-    /* nu = z - H x -> y; C = H P H^T + R */
-    mca_mat_mul(xn, h, x, m, n, 1u);
-    for (size_t i = 0; i < m; ++i) {
-        y[i] = z[i] - xn[i];
+size_t mca_kf_ws_len(size_t n, size_t m)
+{
+    return (size_t)MCA_KF_WS_LEN(n, m);
+}
+
+/* ---------------------------------------------------------------- memory */
+
+/* 1 when rs is a memory that mca_robust_state_init and mca_kf_update can have produced
+ * (counters in range, flags 0/1, statistics finite, variances >= 0, 0 < q_scale, D_k >= 0).
+ * Only the modes that use the memory check it. */
+static int memory_ok(const mca_robust_state_t *rs)
+{
+    if (rs->win_n > MCA_AKF_WINDOW || rs->win_head >= MCA_AKF_WINDOW || rs->alarm > 1u || rs->started > 1u) {
+        return 0;
     }
-    mca_mat_mul_bt(pht, p, h, n, n, m);  /* P H^T (P symmetric) */
-    mca_mat_mul(c, h, pht, m, n, m);     /* H P H^T */
-    for (size_t i = 0; i < m * m; ++i) {
-        c[i] += r[i];
+    if (!mca_all_finite(rs->win, MCA_AKF_WINDOW) || !mca_all_finite(rs->nu_mean, MCA_MEAS_MAX) ||
+        !mca_all_finite(rs->nu_var, MCA_MEAS_MAX) || !mca_finite(rs->q_scale) || !mca_finite(rs->d_k)) {
+        return 0;
     }
-    mca_mat_symmetrize(c, m);
-    if (rep != NULL) {
-        memset(rep, 0, sizeof(*rep));
-        rep->m = (uint8_t)m;
-        rep->mode = (uint8_t)MCA_ROBUST_PLAIN;
-        rep->factor = 1.0f;
-        rep->q_scale = 1.0f;
-        for (size_t i = 0; i < m; ++i) {
-            rep->w[i] = 1.0f;
+    for (size_t i = 0; i < MCA_MEAS_MAX; ++i) {
+        if (rs->nu_var[i] < 0.0f) {
+            return 0;
         }
-        memcpy(rep->nu, y, m * sizeof(float));
-        memcpy(rep->c, c, m * m * sizeof(float));
     }
-    if (mca_cholesky(l, c, m) != MCA_OK) {
-        return MCA_ERR_SINGULAR;
+    return rs->q_scale > 0.0f && rs->d_k >= 0.0f;
+}
+
+/* AKF step 1 for row i (ALGORITHMS.md 5): exponential forgetting of the innovation mean r_i
+ * and variance s_i, the recursive form of eq. 15-16, the variance about the new mean. Pure:
+ * called once to build R* and again to commit, with the same float operations, so both
+ * calls give the same bits and nothing needs storing in between. Statistics are kept per row
+ * index (ALGORITHMS.md 5 does not say what happens when m changes between updates, e.g. a CS
+ * axis with position-only then position+velocity fixes): row i < m is updated, rows >= m
+ * keep their values, and "first update" means the first of the memory (started), so a row
+ * first seen later starts from the initial zero mean and variance with forgetting. */
+static void akf_row(const mca_robust_state_t *rs, float b, size_t i, float nu, float *r_new, float *s_new)
+{
+    if (rs->started == 0u) {
+        *r_new = nu; /* first update of a memory */
+        *s_new = 0.0f;
+        return;
     }
-    /* T = nu^T C^-1 nu; solve into xn (free again) */
-    float *sol = xn;
-    memcpy(sol, y, m * sizeof(float));
-    mca_cholesky_solve(l, sol, m);
-    float t_stat = 0.0f;
+    const float r = (1.0f - b) * rs->nu_mean[i] + b * nu;
+    const float d = nu - r;
+    *r_new = r;
+    *s_new = (1.0f - b) * rs->nu_var[i] + b * (d * d);
+}
+
+/* AKF step 3: mean over the last min(win_n + 1, akf_window) values of e, the new one e_new
+ * included, oldest first. The ring always has MCA_AKF_WINDOW slots (win_head the next one),
+ * so a changed akf_window reads the last values correctly. */
+static float akf_window_mean(const mca_robust_state_t *rs, size_t window, float e_new)
+{
+    size_t k = (size_t)rs->win_n + 1u;
+    if (k > window) {
+        k = window;
+    }
+    /* k - 1 stored values before the slot e_new goes to */
+    float sum = 0.0f;
+    for (size_t j = k - 1u; j > 0u; --j) {
+        const size_t slot = ((size_t)rs->win_head + MCA_AKF_WINDOW - j) % MCA_AKF_WINDOW;
+        sum += rs->win[slot];
+    }
+    sum += e_new;
+    return sum / (float)k;
+}
+
+/* log2(v) for v > 0 (normal or +inf), the core's own (+, -, *, / and bit operations only),
+ * so host and target compute the same bits (no libm log2f, whose last ulp differs between
+ * glibc and newlib). v = 2^e m, m in [sqrt(1/2), sqrt(2)); ln m = 2 atanh(u), u = (m-1)/(m+1),
+ * |u| < 0.172, five odd terms (first dropped term < 4e-10 relative). Error ~2 ulp. */
+static float log2_pos(float v)
+{
+    if (!(v <= 3.4028235e38f)) {
+        return v; /* +inf (or NaN) */
+    }
+    uint32_t bits;
+    memcpy(&bits, &v, sizeof(bits));
+    int32_t e = (int32_t)((bits >> 23) & 0xffu) - 127;
+    bits = (bits & 0x007fffffu) | 0x3f800000u; /* mantissa in [1, 2) */
+    float m;
+    memcpy(&m, &bits, sizeof(m));
+    if (m > 1.41421356f) {
+        m *= 0.5f;
+        ++e;
+    }
+    const float u = (m - 1.0f) / (m + 1.0f);
+    const float u2 = u * u;
+    const float ln_m =
+        u * (2.0f + u2 * (0.666666667f + u2 * (0.4f + u2 * (0.285714286f + u2 * 0.222222222f))));
+    return (float)e + ln_m * 1.44269504f; /* 1 / ln 2 */
+}
+
+/* AKF eq. 18-19: alpha = mean(window) / tr(H P H^T); q = clamp(log2(max(alpha + 1, tiny)),
+ * q_min, q_max). Because q_min > 0 (config check), any log2 argument <= 1 clamps to q_min,
+ * so "tiny" only keeps log2 away from 0, negatives and NaN; 1e-30f (a normal float) is
+ * used. A zero tr(H P H^T) (no predicted spread) gives alpha = +inf for a positive mean
+ * (q_max) and -inf otherwise (q_min). */
+static float akf_q_scale(const mca_robust_config_t *rc, float mean_e, float tr_hph)
+{
+    float alpha;
+    if (tr_hph > 0.0f) {
+        alpha = mean_e / tr_hph;
+    } else {
+        alpha = mean_e > 0.0f ? INFINITY : -INFINITY;
+    }
+    float arg = alpha + 1.0f;
+    if (!(arg > 1e-30f)) {
+        arg = 1e-30f;
+    }
+    float q = log2_pos(arg); /* +inf for arg = +inf, clamped below */
+    if (q < rc->akf_q_min) {
+        q = rc->akf_q_min;
+    }
+    if (q > rc->akf_q_max) {
+        q = rc->akf_q_max;
+    }
+    return q;
+}
+
+/* ---------------------------------------------------------------- modes */
+
+/* What a mode asks of the common gain/Joseph step (section-1 steps 4-6). The gain uses
+ * C_eff = gamma (C + diag(d)) over the kept rows, Joseph uses R_eff = R + diag(d) (rows not
+ * kept get a zero gain column, so their R entries do not matter). d lives in ws. */
+typedef struct {
+    float gamma;       /* gain covariance scale (FTA, fuzzy inflation); 1 otherwise */
+    unsigned keep;     /* bit i set: row i is used */
+    int use_d;         /* d (per-row R diagonal increment) is non-zero somewhere */
+    int rejected;      /* no update at all */
+    float factor;      /* reported inflation */
+    uint8_t detected;  /* reported */
+    uint8_t alarm;     /* fuzzy: alarm after this update */
+    float d_k;         /* fuzzy: D_k after this update */
+    float q_scale;     /* AKF: Q factor after this update; 1 in other modes */
+    float e_new;       /* AKF: this epoch's nu^T nu - tr(R) */
+} mca_plan_t;
+
+/* FTA (paper 000): gamma = T / chi2_m(1e-4) above the threshold, else 1. */
+static void plan_fta(mca_plan_t *pl, size_t m, float t_stat)
+{
+    const float thr = mca_chi2_quantile(m, MCA_CHI2_1E4);
+    pl->gamma = t_stat <= thr ? 1.0f : t_stat / thr;
+    pl->factor = pl->gamma;
+    pl->detected = pl->gamma > 1.0f ? 1u : 0u; /* "detected = gamma > 1", as specified */
+}
+
+/* Fuzzy three-threshold detector (paper 001). Memberships of T as ALGORITHMS.md 5 writes
+ * them; where two pieces meet (T = TD1, TD2, TD3) both give the same value. */
+static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_robust_state_t *rs, size_t m,
+                       float t_stat)
+{
+    const float td1 = mca_chi2_quantile(m, MCA_CHI2_2P5E2);
+    const float td2 = mca_chi2_quantile(m, MCA_CHI2_5E3);
+    const float td3 = 10.0f * td2;
+    float dom_h = 0.0f, dom_m = 0.0f, dom_d = 0.0f;
+    if (t_stat < td1) {
+        dom_h = 1.0f;
+    } else if (t_stat <= td2) {
+        dom_h = (td2 - t_stat) / (td2 - td1);
+    }
+    if (t_stat > td1 && t_stat <= td2) {
+        dom_m = (t_stat - td1) / (td2 - td1);
+    } else if (t_stat > td2 && t_stat < td3) {
+        dom_m = (td3 - t_stat) / (td3 - td2);
+    }
+    if (t_stat > td3) {
+        dom_d = 1.0f;
+    } else if (t_stat >= td2) {
+        dom_d = (t_stat - td2) / (td3 - td2);
+    }
+    const float mu = (td1 / td3) * dom_h + 0.5f * dom_m + dom_d;
+    float d = 0.5f * rs->d_k + mu; /* D_k = D_{k-1} / 2 + mu_k */
+    uint8_t alarm = rs->alarm;
+    if (alarm == 0u && d > 1.0f) {
+        alarm = 1u;
+    } else if (alarm != 0u && t_stat < td2 && d < 1.0f) {
+        alarm = 0u; /* release */
+        d = 0.0f;
+    }
+    pl->d_k = d;
+    pl->alarm = alarm;
+    pl->detected = alarm;
+    if (alarm != 0u) {
+        if (rc->fuzzy_reject != 0u) {
+            pl->rejected = 1;
+        } else {
+            const float g = t_stat / td2;
+            pl->gamma = g > 1.0f ? g : 1.0f;
+            pl->factor = pl->gamma;
+        }
+    }
+}
+
+/* AKF (paper 004), steps 1-3; step 4 is the common update with R* = R + diag(d). */
+static void plan_akf(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_robust_state_t *rs, size_t n,
+                     size_t m, const float *h, const float *pht, const float *r, const float *nu, float t_stat,
+                     float *d)
+{
+    const float b = rc->akf_forget;
+    /* step 2: detection with the chi2_m(1e-2) test; R* = R + diag(s_i) with the new s_i */
+    const int det = t_stat > mca_chi2_quantile(m, MCA_CHI2_1E2);
+    float tr_r = 0.0f, tr_rs = 0.0f, nu2 = 0.0f, tr_hph = 0.0f;
     for (size_t i = 0; i < m; ++i) {
-        t_stat += y[i] * sol[i];
+        float r_new, s_new;
+        akf_row(rs, b, i, nu[i], &r_new, &s_new);
+        d[i] = det ? s_new : 0.0f;
+        tr_r += r[i * m + i];
+        tr_rs += r[i * m + i] + d[i];
+        nu2 += nu[i] * nu[i];
+        /* (H P H^T)_ii with the same sum as mca_mat_mul */
+        float s = 0.0f;
+        for (size_t l = 0; l < n; ++l) {
+            s += h[i * n + l] * pht[l * m + i];
+        }
+        tr_hph += s;
     }
-    if (rep != NULL) {
-        rep->t_stat = t_stat;
+    pl->use_d = det;
+    pl->detected = det ? 1u : 0u;
+    /* factor = tr(R*) / tr(R); exactly 1 without detection. A non-positive tr(R) (R is
+     * documented positive definite, only C is checked) reports 1. */
+    pl->factor = (det && tr_r > 0.0f) ? tr_rs / tr_r : 1.0f;
+    /* step 3: e = nu^T nu - tr(R) into the window, q_scale from its mean (eq. 18-19) */
+    pl->e_new = nu2 - tr_r;
+    pl->q_scale = akf_q_scale(rc, akf_window_mean(rs, rc->akf_window, pl->e_new), tr_hph);
+}
+
+/* IGG-III weight of a standardised residual s > k0 (paper 003). */
+static float igg_weight(float s, float k0, float k1)
+{
+    if (s > k1) {
+        return 0.0f;
     }
-    /* K = P H^T C^-1, row by row: C k_i = (P H^T)_i */
+    const float q = (k1 - s) / (k1 - k0);
+    return (k0 / s) * (q * q);
+}
+
+/* IGG-III (paper 003). c holds C (m x m) and gets R_ii / w_i - R_ii added to the diagonal
+ * of each down-weighted row (the equivalent C); d the same increments (for R_eff); w (may be
+ * NULL) the per-row weights, for the report. Only the weighted row's diagonal changes, so
+ * the remaining rows' s are unchanged by the spec's "recompute"; they are recomputed from
+ * c anyway (m^2 sqrtf, m <= 6). With a full R only R_ii is replaced, as written: the
+ * off-diagonal R_ij of a down-weighted row stay (a larger diagonal keeps R positive definite).
+ * "detected" is any w_i < 1 as computed (an s a hair above k0 whose weight rounds to 1.0f
+ * does not count). */
+static void plan_igg(mca_plan_t *pl, const mca_robust_config_t *rc, size_t m, const float *r, const float *nu,
+                     float *c, float *d, float *w)
+{
+    unsigned weighted = 0u;
+    for (size_t i = 0; i < m; ++i) {
+        d[i] = 0.0f;
+    }
+    for (size_t it = 0; it < m; ++it) {
+        size_t imax = m;
+        float smax = 0.0f;
+        for (size_t j = 0; j < m; ++j) {
+            if ((weighted & (1u << j)) != 0u) {
+                continue;
+            }
+            const float s = fabsf(nu[j]) / sqrtf(c[j * m + j]);
+            if (imax == m || s > smax) { /* strict: lowest index on ties */
+                imax = j;
+                smax = s;
+            }
+        }
+        if (imax == m || smax <= rc->igg_k0) {
+            break;
+        }
+        weighted |= 1u << imax;
+        float wi = igg_weight(smax, rc->igg_k0, rc->igg_k1);
+        const float rii = r[imax * m + imax];
+        const float r_eq = wi > 0.0f ? rii / wi : 0.0f;
+        if (!(wi > 0.0f) || !isfinite(r_eq)) {
+            /* weight 0, or so small that R_ii / w overflows float: the row is removed */
+            wi = 0.0f;
+            pl->keep &= ~(1u << imax);
+        } else {
+            d[imax] = r_eq - rii;
+            c[imax * m + imax] += d[imax];
+            pl->use_d = 1;
+        }
+        if (wi < 1.0f) {
+            pl->detected = 1u; /* any w_i < 1 */
+        }
+        if (w != NULL) {
+            w[imax] = wi;
+        }
+    }
+    if (pl->keep == 0u) {
+        pl->rejected = 1; /* every row removed */
+    }
+}
+
+/* 1 when the gain covariance differs from C (re-factor needed). Plain and undetected epochs
+ * return 0, so they are the section-1 update bit for bit. */
+static int refactor_needed(const mca_plan_t *pl, size_t m)
+{
+    return pl->use_d || pl->gamma > 1.0f || pl->keep != (1u << m) - 1u;
+}
+
+/* Section-1 steps 4-6 with the plan: gain from C_eff = gamma (C + diag(d)) over the kept rows
+ * (zero gain column for the others), x+ = x + K nu, Joseph with R_eff = R + diag(d),
+ * symmetrised, finite check, then x and p written. c holds C (for IGG already with d on its
+ * diagonal: c_has_d), l its Cholesky factor, kk P H^T, t the increments d, y nu. */
+static mca_status_t apply(float *x, float *p, size_t n, const float *h, const float *r, size_t m,
+                          const mca_plan_t *pl, float *a, float *b, float *pn, float *kk, float *t, float *c,
+                          float *l, float *xn, const float *y, int refactor, int c_has_d)
+{
+    const float *d = t;
+    size_t mk = m;
+    if (refactor) {
+        if (pl->use_d && !c_has_d) {
+            for (size_t i = 0; i < m; ++i) {
+                c[i * m + i] += d[i];
+            }
+        }
+        mk = 0u;
+        for (size_t i = 0; i < m; ++i) {
+            mk += (pl->keep >> i) & 1u;
+        }
+        /* Compact the kept rows and columns to mk x mk at the start of c, scaled by gamma.
+         * Destination index <= source index and both increase: safe in place. */
+        size_t ik = 0u;
+        for (size_t i = 0; i < m; ++i) {
+            if ((pl->keep & (1u << i)) == 0u) {
+                continue;
+            }
+            size_t jk = 0u;
+            for (size_t j = 0; j < m; ++j) {
+                if ((pl->keep & (1u << j)) != 0u) {
+                    c[ik * mk + jk] = pl->gamma * c[i * m + j];
+                    ++jk;
+                }
+            }
+            ++ik;
+        }
+        if (!mca_all_finite(c, mk * mk)) {
+            return MCA_ERR_NONFINITE; /* gamma C overflowed float (T near FLT_MAX) */
+        }
+        if (mca_cholesky(l, c, mk) != MCA_OK) {
+            return MCA_ERR_SINGULAR;
+        }
+    }
+    /* K = P H^T C_eff^-1, row by row in place: C_eff k_i = (P H^T)_i over the kept columns */
     for (size_t i = 0; i < n; ++i) {
-        memcpy(&k[i * m], &pht[i * m], m * sizeof(float));
-        mca_cholesky_solve(l, &k[i * m], m);
+        float *row = &kk[i * m];
+        if (mk == m) {
+            mca_cholesky_solve(l, row, m);
+            continue;
+        }
+        size_t jk = 0u;
+        for (size_t j = 0; j < m; ++j) { /* gather forward */
+            if ((pl->keep & (1u << j)) != 0u) {
+                row[jk++] = row[j];
+            }
+        }
+        mca_cholesky_solve(l, row, mk);
+        for (size_t j = m; j-- > 0u;) { /* scatter backward, zero for removed rows */
+            row[j] = (pl->keep & (1u << j)) != 0u ? row[--jk] : 0.0f;
+        }
+    }
+    /* R_eff into c (C and its compaction are no longer needed; d is read before t is reused) */
+    memcpy(c, r, m * m * sizeof(float));
+    if (pl->use_d) {
+        for (size_t i = 0; i < m; ++i) {
+            c[i * m + i] += d[i];
+        }
     }
     /* x+ = x + K nu */
-    mca_mat_mul(xn, k, y, n, m, 1u);
+    mca_mat_mul(xn, kk, y, n, m, 1u);
     for (size_t i = 0; i < n; ++i) {
         xn[i] += x[i];
     }
-    /* Joseph: A = I - K H; P+ = A P A^T + K R K^T */
-    mca_mat_mul(a, k, h, n, m, n);
+    /* Joseph: A = I - K H; P+ = A P A^T + K R_eff K^T (valid for any gain) */
+    mca_mat_mul(a, kk, h, n, m, n);
     for (size_t i = 0; i < n * n; ++i) {
         a[i] = -a[i];
     }
@@ -120,8 +439,8 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
     }
     mca_mat_mul(b, a, p, n, n, n);
     mca_mat_mul_bt(pn, b, a, n, n, n);
-    mca_mat_mul(pht, k, r, n, m, m); /* K R into pht (free) */
-    mca_mat_mul_bt(b, pht, k, n, m, n);
+    mca_mat_mul(t, kk, c, n, m, m); /* K R_eff into t (d no longer needed) */
+    mca_mat_mul_bt(b, t, kk, n, m, n);
     for (size_t i = 0; i < n * n; ++i) {
         pn[i] += b[i];
     }
@@ -131,5 +450,155 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
     }
     memcpy(x, xn, n * sizeof(float));
     memcpy(p, pn, n * n * sizeof(float));
+    return MCA_OK;
+}
+
+/* ---------------------------------------------------------------- the update */
+
+mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const float *z,
+                           const float *r, size_t m, const mca_robust_config_t *rc,
+                           mca_robust_state_t *rs, float *ws, size_t ws_len,
+                           mca_update_report_t *rep)
+{
+    if (x == NULL || p == NULL || h == NULL || z == NULL || r == NULL || ws == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (m == 0u || m > MCA_MEAS_MAX || n == 0u || ws_len < (size_t)MCA_KF_WS_LEN(n, m)) {
+        return MCA_ERR_BAD_ARG;
+    }
+    mca_robust_mode_t mode = MCA_ROBUST_PLAIN;
+    if (rc != NULL) {
+        if (mca_robust_config_check(rc) != MCA_OK) {
+            return MCA_ERR_BAD_CONFIG;
+        }
+        mode = (mca_robust_mode_t)rc->mode;
+    }
+    const int uses_memory = mode == MCA_ROBUST_AKF || mode == MCA_ROBUST_FUZZY;
+    if (uses_memory) {
+        if (rs == NULL) {
+            return MCA_ERR_NULL;
+        }
+        if (!memory_ok(rs)) {
+            return MCA_ERR_BAD_ARG;
+        }
+    }
+    if (!mca_all_finite(z, m) || !mca_all_finite(r, m * m) || !mca_all_finite(x, n) ||
+        !mca_all_finite(p, n * n) || !mca_all_finite(h, m * n)) {
+        return MCA_ERR_NONFINITE;
+    }
+    /* Scratch layout (MCA_KF_WS_LEN(n, m) floats): a, b, pn (n x n); kk (n x m): P H^T, then
+     * K in place; t (n x m): C^-1 nu, then the per-row R increments d (m), then K R_eff;
+     * c, l (m x m); xn (n); y (m). Every m-vector fits in t (n >= 1). */
+    float *a = ws;
+    float *b = a + n * n;
+    float *pn = b + n * n;
+    float *kk = pn + n * n;
+    float *t = kk + n * m;
+    float *c = t + n * m;
+    float *l = c + m * m;
+    float *xn = l + m * m;
+    float *y = xn + n;
+
+    /* nu = z - H x -> y; C = H P H^T + R (ALGORITHMS.md 1, step 1) */
+    mca_mat_mul(y, h, x, m, n, 1u);
+    for (size_t i = 0; i < m; ++i) {
+        y[i] = z[i] - y[i];
+    }
+    mca_mat_mul_bt(kk, p, h, n, n, m); /* P H^T (P symmetric) */
+    mca_mat_mul(c, h, kk, m, n, m);    /* H P H^T */
+    for (size_t i = 0; i < m * m; ++i) {
+        c[i] += r[i];
+    }
+    mca_mat_symmetrize(c, m);
+    if (rep != NULL) {
+        memset(rep, 0, sizeof(*rep));
+        rep->m = (uint8_t)m;
+        rep->mode = (uint8_t)mode;
+        rep->factor = 1.0f;
+        rep->q_scale = 1.0f;
+        for (size_t i = 0; i < m; ++i) {
+            rep->w[i] = 1.0f;
+        }
+        memcpy(rep->nu, y, m * sizeof(float));
+        memcpy(rep->c, c, m * m * sizeof(float));
+    }
+    /* step 2: C positive definite */
+    if (mca_cholesky(l, c, m) != MCA_OK) {
+        return MCA_ERR_SINGULAR;
+    }
+    /* step 3: T = nu^T C^-1 nu */
+    memcpy(t, y, m * sizeof(float));
+    mca_cholesky_solve(l, t, m);
+    float t_stat = 0.0f;
+    for (size_t i = 0; i < m; ++i) {
+        t_stat += y[i] * t[i];
+    }
+    if (rep != NULL) {
+        rep->t_stat = t_stat;
+    }
+    if (mode != MCA_ROBUST_PLAIN && !isfinite(t_stat)) {
+        return MCA_ERR_NONFINITE; /* every robust test needs T (plain mode never reads it) */
+    }
+
+    /* The mode's plan (ALGORITHMS.md 5). Nothing outside ws (and rep->w) is written here. */
+    mca_plan_t pl;
+    memset(&pl, 0, sizeof(pl));
+    pl.gamma = 1.0f;
+    pl.keep = (1u << m) - 1u;
+    pl.factor = 1.0f;
+    pl.q_scale = 1.0f;
+    float *d = t; /* per-row R diagonal increment, m values */
+    switch (mode) {
+    case MCA_ROBUST_FTA:
+        plan_fta(&pl, m, t_stat);
+        break;
+    case MCA_ROBUST_AKF:
+        plan_akf(&pl, rc, rs, n, m, h, kk, r, y, t_stat, d);
+        break;
+    case MCA_ROBUST_FUZZY:
+        plan_fuzzy(&pl, rc, rs, m, t_stat);
+        break;
+    case MCA_ROBUST_IGG3:
+        plan_igg(&pl, rc, m, r, y, c, d, rep != NULL ? rep->w : NULL);
+        break;
+    case MCA_ROBUST_PLAIN:
+    default:
+        break;
+    }
+
+    if (!pl.rejected) {
+        const mca_status_t st = apply(x, p, n, h, r, m, &pl, a, b, pn, kk, t, c, l, xn, y,
+                                      refactor_needed(&pl, m), mode == MCA_ROBUST_IGG3);
+        if (st != MCA_OK) {
+            return st; /* x, p, rs untouched */
+        }
+    }
+    /* Commit the memory (the update, if any, is already in x, p). */
+    if (mode == MCA_ROBUST_AKF) {
+        for (size_t i = 0; i < m; ++i) {
+            float r_new, s_new;
+            akf_row(rs, rc->akf_forget, i, y[i], &r_new, &s_new);
+            rs->nu_mean[i] = r_new;
+            rs->nu_var[i] = s_new;
+        }
+        rs->started = 1u;
+        rs->win[rs->win_head] = pl.e_new;
+        rs->win_head = (uint8_t)((rs->win_head + 1u) % MCA_AKF_WINDOW);
+        if (rs->win_n < MCA_AKF_WINDOW) {
+            ++rs->win_n;
+        }
+        rs->q_scale = pl.q_scale;
+    } else if (mode == MCA_ROBUST_FUZZY) {
+        rs->d_k = pl.d_k;
+        rs->alarm = pl.alarm;
+    }
+    if (rep != NULL) {
+        rep->factor = pl.rejected ? 1.0f : pl.factor;
+        rep->detected = pl.detected;
+        rep->rejected = pl.rejected ? 1u : 0u;
+        rep->alarm = mode == MCA_ROBUST_FUZZY ? pl.alarm : 0u;
+        rep->q_scale = mode == MCA_ROBUST_AKF ? pl.q_scale : 1.0f;
+        /* rep->w: 1 from the start, IGG-III wrote its weights */
+    }
     return MCA_OK;
 }

@@ -500,7 +500,8 @@ def chi2_quantile(m: int, level: float) -> float:
     """The C core's chi2_m(a) (``mca_chi2_quantile``) for m = 1..MCA_MEAS_MAX and a in
     :data:`CHI2_LEVELS` (1e-4, 1e-2, 5e-3, 2.5e-2)."""
     if level not in CHI2_LEVELS:
-        raise errors.BadArgError(f"chi2 level {level!r} not in the table ({', '.join(map(str, CHI2_LEVELS))})")
+        known = ", ".join(map(str, CHI2_LEVELS))
+        raise errors.BadArgError(f"chi2 level {level!r} not in the table ({known})")
     if not 1 <= int(m) <= lib.MCA_MEAS_MAX:
         raise errors.BadArgError(f"chi2 degrees of freedom {m!r} not in 1..{lib.MCA_MEAS_MAX}")
     return float(lib.mca_chi2_quantile(int(m), CHI2_LEVELS[level]))

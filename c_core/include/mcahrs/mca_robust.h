@@ -17,6 +17,18 @@ typedef enum {
     MCA_ROBUST_IGG3 = 4   /**< IGG-III per-component weights (paper 003) */
 } mca_robust_mode_t;
 
+/**
+ * Upper-tail levels a of the chi-square quantile table chi2_m(a) (docs/ALGORITHMS.md 5),
+ * in the table's column order.
+ */
+typedef enum {
+    MCA_CHI2_1E4 = 0,   /**< a = 1e-4: FTA threshold */
+    MCA_CHI2_1E2 = 1,   /**< a = 1e-2: AKF detection */
+    MCA_CHI2_5E3 = 2,   /**< a = 5e-3: fuzzy TD2 */
+    MCA_CHI2_2P5E2 = 3, /**< a = 2.5e-2: fuzzy TD1 */
+    MCA_CHI2_LEVELS = 4 /**< number of levels (not a level) */
+} mca_chi2_level_t;
+
 /** Longest innovation window any mode keeps (AKF). */
 #define MCA_AKF_WINDOW 8
 
@@ -34,12 +46,13 @@ typedef struct {
 
 /** Memory a stateful mode keeps between updates of one filter (fixed size). */
 typedef struct {
-    float win[MCA_AKF_WINDOW];     /**< AKF: last values of nu^T nu - tr(R) */
+    float win[MCA_AKF_WINDOW];     /**< AKF: ring of the last values of nu^T nu - tr(R) (always
+                                        MCA_AKF_WINDOW slots; the mean reads the last akf_window) */
     float nu_mean[MCA_MEAS_MAX];   /**< AKF: running innovation mean per row */
     float nu_var[MCA_MEAS_MAX];    /**< AKF: running innovation variance per row */
     float q_scale;                 /**< factor the owner applies to its Q at the next predict */
     float d_k;                     /**< fuzzy: exponentially weighted membership D_k */
-    uint8_t win_n;                 /**< AKF: entries in win */
+    uint8_t win_n;                 /**< AKF: entries in win, saturating at MCA_AKF_WINDOW */
     uint8_t win_head;              /**< AKF: next slot */
     uint8_t alarm;                 /**< fuzzy: alarm raised */
     uint8_t started;               /**< AKF: row statistics initialised */
@@ -60,33 +73,84 @@ typedef struct {
     uint8_t alarm;                              /**< fuzzy detector alarm state after this update */
 } mca_update_report_t;
 
-/** Defaults: plain mode, and the papers' parameters for the others (ALGORITHMS.md 5). */
+/**
+ * Defaults: plain mode, and the papers' parameters for the others (ALGORITHMS.md 5).
+ * Cost: a memset and 8 stores. Cannot fail (cfg must not be NULL).
+ */
 void mca_robust_config_default(mca_robust_config_t *cfg);
-/** @return MCA_ERR_BAD_CONFIG when a field is out of range, else MCA_OK. */
+
+/**
+ * Range check of every field (mode known, fuzzy_reject 0/1, akf_window 1..MCA_AKF_WINDOW,
+ * akf_forget in (0, 1], 0 < akf_q_min <= akf_q_max finite, 0 < igg_k0 < igg_k1 finite).
+ * Cost: ~15 compares. Reads only cfg.
+ * @return MCA_ERR_NULL (cfg NULL), MCA_ERR_BAD_CONFIG when a field is out of range, else MCA_OK.
+ */
 mca_status_t mca_robust_config_check(const mca_robust_config_t *cfg);
-/** Empty memory (q_scale 1, no alarm). */
+
+/**
+ * Empty memory: q_scale 1, D_k 0, no alarm, empty AKF window, zero row statistics.
+ * Cost: a memset. Cannot fail (st must not be NULL). A filter that switches its mode at run
+ * time should call it: a mode only reads and writes the fields it owns (AKF: win, nu_mean,
+ * nu_var, q_scale, win_n, win_head, started; fuzzy: d_k, alarm), so a q_scale left by AKF
+ * would otherwise keep scaling Q after a switch to another mode.
+ */
 void mca_robust_state_init(mca_robust_state_t *st);
 
 /**
- * Kalman measurement update with Joseph-form covariance (docs/ALGORITHMS.md section 1).
+ * Upper-a quantile of chi-square with m degrees of freedom, chi2_m(a) =
+ * scipy.stats.chi2.ppf(1 - a, m), from the compiled table (scripts/gen_chi2_table.py).
+ * Cost: one table read. Cannot fail.
+ * @param[in] m     degrees of freedom, 1..MCA_MEAS_MAX
+ * @param[in] level upper-tail level
+ * @return the quantile (> 0); 0.0f when m or level is out of range (never a valid quantile).
+ */
+float mca_chi2_quantile(size_t m, mca_chi2_level_t level);
+
+/**
+ * Scratch floats mca_kf_update needs for n states and m rows: MCA_KF_WS_LEN(n, m), as a
+ * function for bindings that cannot expand the macro. Cost: a few multiplies. Cannot fail.
+ */
+size_t mca_kf_ws_len(size_t n, size_t m);
+
+/**
+ * Kalman measurement update with Joseph-form covariance (docs/ALGORITHMS.md section 1) in
+ * the robust/adaptive mode rc->mode (section 5): plain, FTA, AKF, fuzzy, IGG-III.
  *
- * Cost: O(n^3 + n^2 m + m^3) flops (three n x n products). Touches only its arguments.
- * On any error x and p are unchanged.
+ * Cost, every mode: O(n^3 + n^2 m + m^3) flops, the Joseph products dominating
+ * (2 n^3 + 3 n^2 m + O(n m^2 + m^3) multiply-adds; n = 6, m = 2: ~700). On top of that,
+ * FTA and fuzzy inflation, AKF on detection and IGG-III with a down-weighted row re-factor
+ * the m x m gain covariance (m^3 / 6 and m sqrtf); AKF adds O(m n + MCA_AKF_WINDOW) and one
+ * log2 (the core's own, ~15 flops, no libm); IGG-III adds m^2 sqrtf; fuzzy O(1). Stack:
+ * scalars and pointers only, no arrays (288 bytes in the Cortex-M4F firmware build).
+ * Touches only its arguments: x, p, rs (AKF and fuzzy only) and rep are written, ws is
+ * scratch, everything else is read only.
  *
- * @param[in,out] x      state, n values
- * @param[in,out] p      covariance, n x n, symmetric
- * @param[in]     n      state size
- * @param[in]     h      measurement matrix, m x n
+ * Errors are checked before anything is written; on any error x, p and rs are unchanged
+ * (rep is meaningful only on MCA_OK: after an error it may hold nu, C, T and IGG-III weights
+ * of the failed update). A rejected update (fuzzy alarm with fuzzy_reject, or IGG-III
+ * removing every row) returns MCA_OK with rep->rejected = 1 and x, p unchanged; the fuzzy
+ * detector's memory still advances.
+ *
+ * @param[in,out] x      state, n values (finite)
+ * @param[in,out] p      covariance, n x n, symmetric (finite)
+ * @param[in]     n      state size, >= 1
+ * @param[in]     h      measurement matrix, m x n (finite)
  * @param[in]     z      measurement, m values
  * @param[in]     r      measurement covariance, m x m, symmetric positive definite
  * @param[in]     m      measurement size, 1..MCA_MEAS_MAX
- * @param[in]     rc     robust configuration (NULL: plain)
- * @param[in,out] rs     robust memory (may be NULL for the stateless modes plain, FTA, IGG-III)
+ * @param[in]     rc     robust configuration (NULL: plain); checked with mca_robust_config_check
+ * @param[in,out] rs     robust memory; required (non-NULL) by AKF and fuzzy, ignored (may be
+ *                       NULL) by plain, FTA and IGG-III
  * @param[out]    ws     scratch, at least MCA_KF_WS_LEN(n, m) floats, not aliasing x, p, h, z, r
  * @param[in]     ws_len floats available in ws
  * @param[out]    rep    report (may be NULL)
- * @return MCA_OK; MCA_ERR_NULL; MCA_ERR_BAD_ARG (m or ws_len); MCA_ERR_NONFINITE (z, r, or
- *         a non-finite result); MCA_ERR_SINGULAR (H P H^T + R not positive definite).
+ * @return MCA_OK; MCA_ERR_NULL (x, p, h, z, r, ws, or rs when the mode needs it);
+ *         MCA_ERR_BAD_ARG (n, m or ws_len out of range, or an rs that mca_robust_state_init and
+ *         this function cannot have produced: counters out of range, non-finite or negative
+ *         statistics); MCA_ERR_BAD_CONFIG (rc out of range); MCA_ERR_NONFINITE (x, p, h, z or
+ *         r not finite, a non-finite T in a robust mode, or a non-finite result);
+ *         MCA_ERR_SINGULAR (H P H^T + R, or the mode's modified gain covariance, not
+ *         positive definite).
  */
 mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const float *z,
                            const float *r, size_t m, const mca_robust_config_t *rc,

@@ -1,0 +1,626 @@
+/* Host tests of the robust/adaptive update modes of mca_kf_update (docs/ALGORITHMS.md 5)
+ * that need no golden model: the chi-square table against a closed form computed here,
+ * each mode's decision on crafted inputs with hand-derivable results, bad input leaving
+ * x, P and the memory untouched in every mode, P staying symmetric positive definite. */
+#include <string.h>
+
+#include "mca_test.h"
+#include "mcahrs/mca_robust.h"
+
+#define NMAX 15
+#define WS_MAX MCA_KF_WS_LEN(NMAX, MCA_MEAS_MAX)
+
+static float g_ws[WS_MAX];
+
+/* ---------------------------------------------------------------- chi-square table */
+
+/* Upper tail Q(x; m) = P[chi2_m > x], closed form for integer m:
+ * even m: exp(-x/2) sum_{k < m/2} (x/2)^k / k!;
+ * odd m:  erfc(sqrt(x/2)) + exp(-x/2) sum_{k=0}^{(m-3)/2} (x/2)^(k+1/2) / Gamma(k + 3/2). */
+static double chi2_sf(double x, int m)
+{
+    const double h = 0.5 * x;
+    double sum, term;
+    if (m % 2 == 0) {
+        sum = 0.0;
+        term = 1.0;
+        for (int k = 0; k < m / 2; ++k) {
+            sum += term;
+            term *= h / (double)(k + 1);
+        }
+        return exp(-h) * sum;
+    }
+    sum = erfc(sqrt(h));
+    term = sqrt(h) / tgamma(1.5); /* (x/2)^(1/2) / Gamma(3/2) */
+    for (int k = 0; k <= (m - 3) / 2; ++k) {
+        sum += exp(-h) * term;
+        term *= h / ((double)k + 1.5); /* Gamma(k + 5/2) = (k + 3/2) Gamma(k + 3/2) */
+    }
+    return sum;
+}
+
+/* chi2_m(a) by bisection of the decreasing Q(x; m) = a, to double precision. */
+static double chi2_isf(double a, int m)
+{
+    double lo = 0.0, hi = 200.0;
+    for (int it = 0; it < 200; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        if (chi2_sf(mid, m) > a) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return 0.5 * (lo + hi);
+}
+
+static void test_chi2_table_matches_closed_form(void)
+{
+    const double levels[MCA_CHI2_LEVELS] = {1e-4, 1e-2, 5e-3, 2.5e-2}; /* mca_chi2_level_t order */
+    for (int m = 1; m <= MCA_MEAS_MAX; ++m) {
+        for (int k = 0; k < MCA_CHI2_LEVELS; ++k) {
+            const double ref = chi2_isf(levels[k], m);
+            const float got = mca_chi2_quantile((size_t)m, (mca_chi2_level_t)k);
+            /* float32 rounding of the quantile is 6e-8 relative; 1e-6 leaves margin */
+            CHECK_CLOSE(got / ref, 1.0, 1e-6);
+        }
+    }
+    /* scipy.stats.chi2.ppf(1 - a, m) literal spot values (scipy 1.17.1): */
+    CHECK_CLOSE(mca_chi2_quantile(1, MCA_CHI2_1E4), 15.136705226623606, 2e-6);
+    CHECK_CLOSE(mca_chi2_quantile(2, MCA_CHI2_1E2), 9.210340371976182, 1e-6);
+    CHECK_CLOSE(mca_chi2_quantile(6, MCA_CHI2_2P5E2), 14.44937533544792, 2e-6);
+    /* closed form sanity: m = 2 is exactly -2 ln a */
+    CHECK_CLOSE(chi2_isf(5e-3, 2), -2.0 * log(5e-3), 1e-9);
+    /* out of range: 0 */
+    CHECK(mca_chi2_quantile(0, MCA_CHI2_1E4) == 0.0f);
+    CHECK(mca_chi2_quantile(MCA_MEAS_MAX + 1, MCA_CHI2_1E4) == 0.0f);
+    CHECK(mca_chi2_quantile(1, MCA_CHI2_LEVELS) == 0.0f);
+}
+
+/* ---------------------------------------------------------------- helpers */
+
+static void cfg_mode(mca_robust_config_t *rc, mca_robust_mode_t mode)
+{
+    mca_robust_config_default(rc);
+    rc->mode = (uint8_t)mode;
+}
+
+static void eye(float *a, int n, float s)
+{
+    memset(a, 0, sizeof(float) * (size_t)(n * n));
+    for (int i = 0; i < n; ++i) {
+        a[i * n + i] = s;
+    }
+}
+
+static int spd(const float *p, int n)
+{
+    float l[NMAX * NMAX];
+    for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < n; ++j) {
+            if (p[i * n + j] != p[j * n + i]) {
+                return 0;
+            }
+        }
+    }
+    return mca_cholesky(l, p, (size_t)n) == MCA_OK;
+}
+
+static unsigned g_seed = 2024u;
+
+/* Uniform in [-0.5, 0.5) from an LCG: deterministic, no libc rand. */
+static float urand(void)
+{
+    g_seed = g_seed * 1103515245u + 12345u;
+    return (float)((g_seed >> 8) & 0xffffffu) / 16777216.0f - 0.5f;
+}
+
+/* ---------------------------------------------------------------- FTA */
+
+static void test_fta_gamma_on_crafted_outlier(void)
+{
+    /* n = 2, m = 1, x = 0, P = I, H = [1 0], R = 1: C = 2, T = z^2 / 2 */
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_FTA);
+    float x[2] = {0.0f, 0.0f}, p[4];
+    eye(p, 2, 1.0f);
+    const float h[2] = {1.0f, 0.0f}, r[1] = {1.0f}, z[1] = {10.0f};
+    mca_update_report_t rep;
+    CHECK_EQ_INT(mca_kf_update(x, p, 2, h, z, r, 1, &rc, NULL, g_ws, WS_MAX, &rep), MCA_OK);
+    const double thr = 15.136705226623606; /* scipy chi2.ppf(1 - 1e-4, 1) */
+    const double gamma = 50.0 / thr;
+    CHECK_CLOSE(rep.t_stat, 50.0, 1e-4);
+    CHECK_CLOSE(rep.factor, gamma, 1e-5);
+    CHECK_EQ_INT(rep.detected, 1);
+    CHECK_EQ_INT(rep.rejected, 0);
+    CHECK_EQ_INT(rep.mode, MCA_ROBUST_FTA);
+    /* K = P H^T (gamma C)^-1 = 1 / (2 gamma); Joseph with the nominal R */
+    const double k = 1.0 / (2.0 * gamma);
+    CHECK_CLOSE(x[0], k * 10.0, 1e-5);
+    CHECK_CLOSE(x[1], 0.0, 0.0);
+    CHECK_CLOSE(p[0], (1.0 - k) * (1.0 - k) + k * k, 1e-6);
+    CHECK_CLOSE(p[3], 1.0, 0.0);
+
+    /* below the threshold: gamma = 1 and bit for bit the plain update */
+    float x1[2] = {0.0f, 0.0f}, p1[4], x2[2] = {0.0f, 0.0f}, p2[4];
+    eye(p1, 2, 1.0f);
+    eye(p2, 2, 1.0f);
+    const float z_in[1] = {3.0f}; /* T = 4.5 */
+    mca_robust_config_t plain;
+    cfg_mode(&plain, MCA_ROBUST_PLAIN);
+    CHECK_EQ_INT(mca_kf_update(x1, p1, 2, h, z_in, r, 1, &rc, NULL, g_ws, WS_MAX, &rep), MCA_OK);
+    CHECK_EQ_INT(rep.detected, 0);
+    CHECK(rep.factor == 1.0f);
+    CHECK_EQ_INT(mca_kf_update(x2, p2, 2, h, z_in, r, 1, &plain, NULL, g_ws, WS_MAX, NULL), MCA_OK);
+    CHECK(memcmp(x1, x2, sizeof(x1)) == 0 && memcmp(p1, p2, sizeof(p1)) == 0);
+}
+
+/* ---------------------------------------------------------------- fuzzy */
+
+/* Expected mu of the three-threshold memberships, written out in double. */
+static double fuzzy_mu(double t, double td1, double td2)
+{
+    const double td3 = 10.0 * td2;
+    double dh = 0.0, dm = 0.0, dd = 0.0;
+    if (t < td1) {
+        dh = 1.0;
+    } else if (t <= td2) {
+        dh = (td2 - t) / (td2 - td1);
+    }
+    if (t > td1 && t <= td2) {
+        dm = (t - td1) / (td2 - td1);
+    } else if (t > td2 && t < td3) {
+        dm = (td3 - t) / (td3 - td2);
+    }
+    if (t > td3) {
+        dd = 1.0;
+    } else if (t >= td2) {
+        dd = (t - td2) / (td3 - td2);
+    }
+    return td1 / td3 * dh + 0.5 * dm + dd;
+}
+
+/* One fuzzy epoch from a fixed prior (x = 0, P = 1, H = 1, R = 1: C = 2) with T = t. */
+static void fuzzy_step(const mca_robust_config_t *rc, mca_robust_state_t *rs, double t, mca_update_report_t *rep,
+                       float *x_out, float *p_out)
+{
+    float x[1] = {0.0f}, p[1] = {1.0f};
+    const float h[1] = {1.0f}, r[1] = {1.0f};
+    const float z[1] = {(float)sqrt(2.0 * t)};
+    CHECK_EQ_INT(mca_kf_update(x, p, 1, h, z, r, 1, rc, rs, g_ws, WS_MAX, rep), MCA_OK);
+    *x_out = x[0];
+    *p_out = p[0];
+}
+
+static void test_fuzzy_alarm_after_two_outliers_and_release(void)
+{
+    /* m = 1 thresholds (scipy chi2.ppf): TD1 = chi2_1(0.025), TD2 = chi2_1(0.005), TD3 = 10 TD2 */
+    const double td1 = 5.023886187314888, td2 = 7.879438576622417;
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_FUZZY);
+    mca_robust_state_t rs;
+    mca_robust_state_init(&rs);
+    mca_update_report_t rep;
+    float x, p;
+    /* T > TD3 (78.8) twice from D = 0: D = 1 (not > 1), then 1.5 > 1: alarm */
+    const double ts[] = {200.0, 200.0, 7.0, 1.0, 1.0, 20.0, 200.0, 200.0, 20.0, 1.0};
+    double d = 0.0;
+    int alarm = 0;
+    for (size_t k = 0; k < sizeof(ts) / sizeof(ts[0]); ++k) {
+        d = 0.5 * d + fuzzy_mu(ts[k], td1, td2);
+        if (!alarm && d > 1.0) {
+            alarm = 1;
+        } else if (alarm && ts[k] < td2 && d < 1.0) {
+            alarm = 0;
+            d = 0.0;
+        }
+        fuzzy_step(&rc, &rs, ts[k], &rep, &x, &p);
+        CHECK_CLOSE(rep.t_stat, ts[k], 1e-5 * ts[k]);
+        CHECK_CLOSE(rs.d_k, d, 1e-5);
+        CHECK_EQ_INT(rs.alarm, alarm);
+        CHECK_EQ_INT(rep.alarm, alarm);
+        CHECK_EQ_INT(rep.detected, alarm);
+        CHECK_EQ_INT(rep.rejected, alarm);
+        CHECK(rep.factor == 1.0f);
+        if (alarm) { /* rejected: x, P unchanged */
+            CHECK(x == 0.0f && p == 1.0f);
+        } else { /* plain: K = 1/2 */
+            CHECK_CLOSE(p, 0.5, 1e-6);
+        }
+    }
+    /* the hand-derived sequence: step 0 D = 1 no alarm; step 1 alarm; step 2 (T = 7 < TD2 but
+     * D = 0.75 + 0.366 > 1) stays; step 3 releases (D < 1, T < TD2) and D = 0 */
+    mca_robust_state_init(&rs);
+    fuzzy_step(&rc, &rs, 200.0, &rep, &x, &p);
+    CHECK_CLOSE(rs.d_k, 1.0, 1e-6);
+    CHECK_EQ_INT(rs.alarm, 0);
+    fuzzy_step(&rc, &rs, 200.0, &rep, &x, &p);
+    CHECK_CLOSE(rs.d_k, 1.5, 1e-6);
+    CHECK_EQ_INT(rs.alarm, 1);
+    fuzzy_step(&rc, &rs, 7.0, &rep, &x, &p);
+    CHECK(rs.d_k > 1.0f);
+    CHECK_EQ_INT(rs.alarm, 1);
+    fuzzy_step(&rc, &rs, 1.0, &rep, &x, &p);
+    CHECK(rs.d_k == 0.0f);
+    CHECK_EQ_INT(rs.alarm, 0);
+    CHECK_EQ_INT(rep.rejected, 0);
+
+    /* inflate instead of reject: gamma = max(1, T / TD2) */
+    rc.fuzzy_reject = 0u;
+    mca_robust_state_init(&rs);
+    fuzzy_step(&rc, &rs, 200.0, &rep, &x, &p);
+    fuzzy_step(&rc, &rs, 200.0, &rep, &x, &p);
+    CHECK_EQ_INT(rep.alarm, 1);
+    CHECK_EQ_INT(rep.rejected, 0);
+    const double g = 200.0 / td2;
+    CHECK_CLOSE(rep.factor, g, 1e-5 * g);
+    const double k = 1.0 / (2.0 * g);
+    CHECK_CLOSE(x, k * sqrt(400.0), 1e-5);
+    CHECK_CLOSE(p, (1.0 - k) * (1.0 - k) + k * k, 1e-6);
+    /* alarmed with T < TD2: gamma = 1 (plain) */
+    fuzzy_step(&rc, &rs, 7.0, &rep, &x, &p);
+    CHECK_EQ_INT(rep.alarm, 1);
+    CHECK(rep.factor == 1.0f);
+    CHECK_CLOSE(p, 0.5, 1e-6);
+}
+
+/* ---------------------------------------------------------------- IGG-III */
+
+static void test_igg_weights_on_crafted_residuals(void)
+{
+    /* n = m = 3, x = 0, P = H = R = I: C = 2 I, s_i = |z_i| / sqrt(2) = {1, 2, 4} */
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_IGG3);
+    float x[3] = {0.0f, 0.0f, 0.0f}, p[9], h[9], r[9];
+    eye(p, 3, 1.0f);
+    eye(h, 3, 1.0f);
+    eye(r, 3, 1.0f);
+    const float s2 = 1.41421356f;
+    const float z[3] = {1.0f * s2, -2.0f * s2, 4.0f * s2};
+    mca_update_report_t rep;
+    CHECK_EQ_INT(mca_kf_update(x, p, 3, h, z, r, 3, &rc, NULL, g_ws, WS_MAX, &rep), MCA_OK);
+    /* w(2) = (1.5 / 2) ((3 - 2) / 1.5)^2 = 1/3; s = 4 > k1: 0 (row removed) */
+    CHECK(rep.w[0] == 1.0f);
+    CHECK_CLOSE(rep.w[1], 1.0 / 3.0, 1e-6);
+    CHECK(rep.w[2] == 0.0f);
+    CHECK_EQ_INT(rep.detected, 1);
+    CHECK_EQ_INT(rep.rejected, 0);
+    CHECK(rep.factor == 1.0f);
+    /* row 0: K = 1/2; row 1: R = 1 / w = 3, K = 1/4; row 2: no update */
+    CHECK_CLOSE(x[0], 0.5 * z[0], 1e-6);
+    CHECK_CLOSE(x[1], 0.25 * z[1], 1e-5);
+    CHECK(x[2] == 0.0f);
+    CHECK_CLOSE(p[0], 0.5, 1e-6);
+    CHECK_CLOSE(p[4], 0.5625 + 0.0625 * 3.0, 1e-6);
+    CHECK(p[8] == 1.0f);
+    CHECK(p[1] == 0.0f && p[2] == 0.0f && p[5] == 0.0f);
+
+    /* every row above k1: rejected, x and P unchanged */
+    float x0[3] = {0.5f, 0.5f, 0.5f}, xr[3], pr[9];
+    memcpy(xr, x0, sizeof(xr));
+    eye(pr, 3, 1.0f);
+    const float zr[3] = {10.0f, -10.0f, 10.0f};
+    CHECK_EQ_INT(mca_kf_update(xr, pr, 3, h, zr, r, 3, &rc, NULL, g_ws, WS_MAX, &rep), MCA_OK);
+    CHECK_EQ_INT(rep.rejected, 1);
+    CHECK(rep.w[0] == 0.0f && rep.w[1] == 0.0f && rep.w[2] == 0.0f);
+    CHECK(memcmp(xr, x0, sizeof(xr)) == 0 && p[8] == 1.0f);
+    float pe[9];
+    eye(pe, 3, 1.0f);
+    CHECK(memcmp(pr, pe, sizeof(pe)) == 0);
+
+    /* all inliers: weights 1, bit for bit the plain update */
+    float xa[3] = {0}, pa[9], xb[3] = {0}, pb[9];
+    eye(pa, 3, 1.0f);
+    eye(pb, 3, 1.0f);
+    const float zi[3] = {0.5f, -1.0f, 2.0f};
+    CHECK_EQ_INT(mca_kf_update(xa, pa, 3, h, zi, r, 3, &rc, NULL, g_ws, WS_MAX, &rep), MCA_OK);
+    CHECK_EQ_INT(rep.detected, 0);
+    CHECK_EQ_INT(mca_kf_update(xb, pb, 3, h, zi, r, 3, NULL, NULL, g_ws, WS_MAX, NULL), MCA_OK);
+    CHECK(memcmp(xa, xb, sizeof(xa)) == 0 && memcmp(pa, pb, sizeof(pa)) == 0);
+}
+
+/* ---------------------------------------------------------------- AKF */
+
+/* One AKF epoch from x = 0, P = 1, H = 1, R = 1 with innovation nu. */
+static void akf_step(const mca_robust_config_t *rc, mca_robust_state_t *rs, float nu, mca_update_report_t *rep,
+                     float *x_out, float *p_out)
+{
+    float x[1] = {0.0f}, p[1] = {1.0f};
+    const float h[1] = {1.0f}, r[1] = {1.0f}, z[1] = {nu};
+    CHECK_EQ_INT(mca_kf_update(x, p, 1, h, z, r, 1, rc, rs, g_ws, WS_MAX, rep), MCA_OK);
+    *x_out = x[0];
+    *p_out = p[0];
+}
+
+static void test_akf_q_scale_clamped_and_r_star(void)
+{
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_AKF);
+    mca_robust_state_t rs;
+    mca_update_report_t rep;
+    float x, p;
+    /* e = nu^2 - R, tr(H P H^T) = 1: alpha = nu^2 - 1 */
+    mca_robust_state_init(&rs);
+    akf_step(&rc, &rs, 2.0f, &rep, &x, &p); /* alpha = 3: log2(4) = 2 */
+    CHECK_CLOSE(rep.q_scale, 2.0, 1e-6);
+    CHECK(rs.q_scale == rep.q_scale);
+    CHECK_EQ_INT(rs.win_n, 1);
+    CHECK_EQ_INT(rep.detected, 0); /* T = 2 < chi2_1(0.01) = 6.63 */
+    CHECK(rep.factor == 1.0f);
+    CHECK_CLOSE(x, 1.0, 1e-6); /* K = 1/2 with R* = R */
+    /* the first update seeds the row statistics: r = nu, s = 0 */
+    CHECK(rs.nu_mean[0] == 2.0f && rs.nu_var[0] == 0.0f && rs.started == 1u);
+
+    mca_robust_state_init(&rs);
+    akf_step(&rc, &rs, 100.0f, &rep, &x, &p); /* alpha = 9999: log2 = 13.3 > 10 */
+    CHECK(rep.q_scale == rc.akf_q_max);
+    CHECK_EQ_INT(rep.detected, 1);
+    CHECK(rep.factor == 1.0f); /* s = 0 on the first update: R* = R */
+
+    mca_robust_state_init(&rs);
+    akf_step(&rc, &rs, 0.0f, &rep, &x, &p); /* alpha = -1: log2(tiny) -> q_min */
+    CHECK(rep.q_scale == rc.akf_q_min);
+    akf_step(&rc, &rs, 1.2f, &rep, &x, &p); /* mean(e) = (-1 + 0.44) / 2 < 0: q_min */
+    CHECK(rep.q_scale == rc.akf_q_min);
+
+    /* R* on detection: r = 0.8 nu1 + 0.2 nu2, s = 0.2 (nu2 - r)^2 */
+    const double nu1 = 0.5, nu2 = 8.0, b = 0.2;
+    mca_robust_state_init(&rs);
+    akf_step(&rc, &rs, (float)nu1, &rep, &x, &p);
+    akf_step(&rc, &rs, (float)nu2, &rep, &x, &p); /* T = 32 > 6.63 */
+    const double rm = (1.0 - b) * nu1 + b * nu2;
+    const double s = b * (nu2 - rm) * (nu2 - rm);
+    CHECK_EQ_INT(rep.detected, 1);
+    CHECK_CLOSE(rep.factor, 1.0 + s, 1e-5 * (1.0 + s));
+    CHECK_CLOSE(rs.nu_mean[0], rm, 1e-6);
+    CHECK_CLOSE(rs.nu_var[0], s, 1e-5 * s);
+    const double k = 1.0 / (2.0 + s); /* gain with H P H^T + R* */
+    CHECK_CLOSE(x, k * nu2, 1e-5);
+    CHECK_CLOSE(p, (1.0 - k) * (1.0 - k) + k * k * (1.0 + s), 1e-6);
+    /* window mean of e: ((0.25 - 1) + (64 - 1)) / 2, alpha / 1 -> log2(32.125) = 5.006 */
+    CHECK_CLOSE(rep.q_scale, log2(1.0 + 0.5 * (-0.75 + 63.0)), 1e-5);
+
+    /* eq. 19's log2 (the core's own) against libm's double log2 over 1 < arg < 1e30:
+     * window 1, H = P = R = 1, so arg = (nu^2 - 1) + 1 in float exactly as the core forms it */
+    mca_robust_config_t wide = rc;
+    wide.akf_window = 1u;
+    wide.akf_q_min = 1e-6f;
+    wide.akf_q_max = 200.0f;
+    double worst = 0.0;
+    for (int i = 0; i < 400; ++i) {
+        const float nu = powf(10.0f, -1.9f + 0.04f * (float)i); /* 0.0126 .. 1.1e14 */
+        mca_robust_state_init(&rs);
+        akf_step(&wide, &rs, nu, &rep, &x, &p);
+        const float arg = (nu * nu - 1.0f) + 1.0f;
+        if (arg > 1.0f + 1e-6f) {
+            const double ref = log2((double)arg);
+            const double err = fabs((double)rep.q_scale - ref) / (ref > 1.0 ? ref : 1.0);
+            worst = err > worst ? err : worst;
+        }
+    }
+    CHECK(worst < 3e-7); /* a few float32 ulps */
+
+    /* the window keeps the last akf_window values: after 8 x e = 3 and then 8 x e = 0, alpha = 0 */
+    rc.akf_window = 4u;
+    mca_robust_state_init(&rs);
+    for (int i = 0; i < 8; ++i) {
+        akf_step(&rc, &rs, 2.0f, &rep, &x, &p);
+    }
+    CHECK_CLOSE(rep.q_scale, 2.0, 1e-6);
+    for (int i = 0; i < 3; ++i) {
+        akf_step(&rc, &rs, 1.0f, &rep, &x, &p);
+    }
+    CHECK_CLOSE(rep.q_scale, log2(1.0 + 0.75), 1e-6); /* (3 + 0 + 0 + 0) / 4 */
+    akf_step(&rc, &rs, 1.0f, &rep, &x, &p);
+    CHECK(rep.q_scale == rc.akf_q_min); /* log2(1) = 0 -> q_min */
+    CHECK_EQ_INT(rs.win_n, MCA_AKF_WINDOW);
+}
+
+/* ---------------------------------------------------------------- errors */
+
+static const mca_robust_mode_t k_modes[] = {MCA_ROBUST_PLAIN, MCA_ROBUST_FTA, MCA_ROBUST_AKF, MCA_ROBUST_FUZZY,
+                                            MCA_ROBUST_IGG3};
+
+static void test_bad_input_leaves_state_in_every_mode(void)
+{
+    enum { N = 3, M = 2 };
+    for (size_t mi = 0; mi < sizeof(k_modes) / sizeof(k_modes[0]); ++mi) {
+        mca_robust_config_t rc;
+        cfg_mode(&rc, k_modes[mi]);
+        mca_robust_state_t rs;
+        mca_robust_state_init(&rs);
+        float x[N] = {1.0f, -2.0f, 0.5f}, p[N * N];
+        eye(p, N, 2.0f);
+        p[1] = p[3] = 0.3f;
+        const float h[M * N] = {1.0f, 0.0f, 0.5f, 0.0f, 1.0f, 0.0f};
+        const float r[M * M] = {1.0f, 0.1f, 0.1f, 2.0f};
+        const float z[M] = {40.0f, -1.0f};
+        /* a few good updates first, so the memory is not trivial */
+        for (int k = 0; k < 3; ++k) {
+            CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_OK);
+        }
+        float x0[N], p0[N * N];
+        mca_robust_state_t rs0;
+        memcpy(x0, x, sizeof(x));
+        memcpy(p0, p, sizeof(p));
+        memcpy(&rs0, &rs, sizeof(rs));
+        const float znan[M] = {NAN, 0.0f}, rnan[M * M] = {1.0f, 0.0f, 0.0f, INFINITY};
+        const float hnan[M * N] = {1.0f, 0.0f, NAN, 0.0f, 1.0f, 0.0f};
+        const float rsing[M * M] = {-100.0f, 0.0f, 0.0f, 1.0f}; /* C not positive definite */
+        mca_update_report_t rep;
+        CHECK_EQ_INT(mca_kf_update(NULL, p, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NULL);
+        CHECK_EQ_INT(mca_kf_update(x, NULL, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NULL);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, NULL, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NULL);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, NULL, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NULL);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, NULL, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NULL);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &rc, &rs, NULL, WS_MAX, &rep), MCA_ERR_NULL);
+        const int needs_rs = k_modes[mi] == MCA_ROBUST_AKF || k_modes[mi] == MCA_ROBUST_FUZZY;
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &rc, NULL, g_ws, WS_MAX, &rep),
+                     needs_rs ? MCA_ERR_NULL : MCA_OK);
+        if (!needs_rs) { /* that call was a good update: undo it */
+            memcpy(x, x0, sizeof(x));
+            memcpy(p, p0, sizeof(p));
+        }
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, 0, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_ARG);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, MCA_MEAS_MAX + 1, &rc, &rs, g_ws, WS_MAX, &rep),
+                     MCA_ERR_BAD_ARG);
+        CHECK_EQ_INT(mca_kf_update(x, p, 0, h, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_ARG);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &rc, &rs, g_ws, MCA_KF_WS_LEN(N, M) - 1, &rep),
+                     MCA_ERR_BAD_ARG);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, znan, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NONFINITE);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, rnan, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NONFINITE);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, hnan, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NONFINITE);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, rsing, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_SINGULAR);
+        /* non-finite x or P */
+        float xb[N], pb[N * N];
+        memcpy(xb, x, sizeof(x));
+        memcpy(pb, p, sizeof(p));
+        xb[2] = NAN;
+        pb[8] = INFINITY;
+        mca_robust_state_t rs1;
+        memcpy(&rs1, &rs, sizeof(rs));
+        CHECK_EQ_INT(mca_kf_update(xb, p, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NONFINITE);
+        CHECK_EQ_INT(mca_kf_update(x, pb, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NONFINITE);
+        /* bad configuration */
+        mca_robust_config_t bad = rc;
+        bad.mode = 5u;
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &bad, &rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_CONFIG);
+        bad = rc;
+        bad.igg_k1 = bad.igg_k0;
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &bad, &rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_CONFIG);
+        bad = rc;
+        bad.akf_window = MCA_AKF_WINDOW + 1u;
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &bad, &rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_CONFIG);
+        /* a corrupt memory, in the modes that read it */
+        if (needs_rs) {
+            mca_robust_state_t bad_rs = rs;
+            bad_rs.win_n = MCA_AKF_WINDOW + 1u;
+            CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &rc, &bad_rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_ARG);
+            bad_rs = rs;
+            bad_rs.nu_var[1] = -1.0f;
+            CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &rc, &bad_rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_ARG);
+            bad_rs = rs;
+            bad_rs.d_k = NAN;
+            CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &rc, &bad_rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_ARG);
+        }
+        CHECK(memcmp(x, x0, sizeof(x)) == 0);
+        CHECK(memcmp(p, p0, sizeof(p)) == 0);
+        CHECK(memcmp(&rs, &rs0, sizeof(rs)) == 0);
+        CHECK(memcmp(&rs1, &rs0, sizeof(rs)) == 0);
+        /* and a good update still works */
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
+        CHECK_EQ_INT(rep.mode, k_modes[mi]);
+    }
+}
+
+/* ---------------------------------------------------------------- m > n, exact scratch */
+
+static void test_more_rows_than_states(void)
+{
+    /* n = 1, m = 6, every row observes x, R = I, P = 1: information form
+     * P+ = 1 / (1 + 6), x+ = P+ (x + sum z). Scratch exactly MCA_KF_WS_LEN(1, 6) (ASan). */
+    static float ws_exact[MCA_KF_WS_LEN(1, 6)];
+    float x[1] = {0.5f}, p[1] = {1.0f}, h[6], r[36];
+    eye(r, 6, 1.0f);
+    const float z[6] = {0.1f, 0.2f, -0.3f, 0.4f, 0.0f, 0.6f};
+    for (int i = 0; i < 6; ++i) {
+        h[i] = 1.0f;
+    }
+    CHECK_EQ_INT(mca_kf_update(x, p, 1, h, z, r, 6, NULL, NULL, ws_exact, MCA_KF_WS_LEN(1, 6), NULL), MCA_OK);
+    CHECK_CLOSE(p[0], 1.0 / 7.0, 1e-6);
+    CHECK_CLOSE(x[0], (0.5 + 1.0) / 7.0, 1e-6);
+    /* every mode runs on it, IGG removing the outlier row 5 */
+    for (size_t mi = 0; mi < sizeof(k_modes) / sizeof(k_modes[0]); ++mi) {
+        mca_robust_config_t rc;
+        cfg_mode(&rc, k_modes[mi]);
+        mca_robust_state_t rs;
+        mca_robust_state_init(&rs);
+        float xm[1] = {0.0f}, pm[1] = {1.0f};
+        const float zo[6] = {0.1f, 0.2f, -0.3f, 0.4f, 0.0f, 60.0f};
+        mca_update_report_t rep;
+        CHECK_EQ_INT(mca_kf_update(xm, pm, 1, h, zo, r, 6, &rc, &rs, ws_exact, MCA_KF_WS_LEN(1, 6), &rep), MCA_OK);
+        CHECK(spd(pm, 1));
+        if (k_modes[mi] == MCA_ROBUST_IGG3) {
+            CHECK(rep.w[5] == 0.0f);
+            /* the other five: P+ = 1/6, x+ = 0.4 / 6 */
+            CHECK_CLOSE(pm[0], 1.0 / 6.0, 1e-6);
+            CHECK_CLOSE(xm[0], 0.4 / 6.0, 1e-6);
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- long runs */
+
+static void test_long_run_p_stays_spd_every_mode(void)
+{
+    enum { N = 6, M = 2 };
+    for (size_t mi = 0; mi < sizeof(k_modes) / sizeof(k_modes[0]); ++mi) {
+        for (int reject = 0; reject < 2; ++reject) {
+            mca_robust_config_t rc;
+            cfg_mode(&rc, k_modes[mi]);
+            rc.fuzzy_reject = (uint8_t)reject;
+            mca_robust_state_t rs;
+            mca_robust_state_init(&rs);
+            float x[N] = {0}, p[N * N], tmp[N * N];
+            eye(p, N, 1.0f);
+            int ok = 1, n_det = 0, n_rej = 0;
+            for (int k = 0; k < 3000; ++k) {
+                /* predict: damped velocity pairs (x0,x1), (x2,x3), (x4,x5), dt = 0.1, Q scaled by
+                 * the AKF factor (1 in the other modes); damped so the unobserved x3, x5 stay bounded */
+                float f[N * N];
+                eye(f, N, 0.98f);
+                f[0 * N + 1] = f[2 * N + 3] = f[4 * N + 5] = 0.1f;
+                mca_mat_mul(tmp, f, p, N, N, N);
+                mca_mat_mul_bt(p, tmp, f, N, N, N);
+                for (int i = 0; i < N; ++i) {
+                    p[i * N + i] += 0.01f * rs.q_scale;
+                }
+                mca_mat_symmetrize(p, N);
+                float h[M * N] = {0};
+                h[0 * N + 0] = 1.0f;
+                h[0 * N + 2] = 0.3f;
+                h[1 * N + 1] = 1.0f;
+                h[1 * N + 4] = -0.5f;
+                const float r[M * M] = {0.5f, 0.05f, 0.05f, 0.2f};
+                float z[M] = {urand(), 0.5f * urand()};
+                if (k % 37 == 5 || k % 37 == 6) {
+                    z[0] += 40.0f; /* outliers, sometimes two in a row */
+                }
+                if (k % 53 == 7) {
+                    z[1] -= 25.0f;
+                }
+                mca_update_report_t rep;
+                const int st = mca_kf_update(x, p, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep);
+                const int good = st == MCA_OK && spd(p, N) && mca_all_finite(p, N * N) && mca_all_finite(x, N) &&
+                                 rep.factor >= 1.0f;
+                if (!good && ok) {
+                    fprintf(stderr, "mode %d reject %d step %d: status %d factor %g\n", (int)k_modes[mi], reject, k,
+                            st, (double)rep.factor);
+                }
+                ok &= good;
+                n_det += rep.detected;
+                n_rej += rep.rejected;
+            }
+            CHECK(ok);
+            if (k_modes[mi] != MCA_ROBUST_PLAIN) {
+                CHECK(n_det > 50); /* the outliers are seen */
+            }
+            if (k_modes[mi] == MCA_ROBUST_FUZZY && reject) {
+                CHECK(n_rej > 10);
+            }
+        }
+    }
+}
+
+int main(void)
+{
+    test_chi2_table_matches_closed_form();
+    test_fta_gamma_on_crafted_outlier();
+    test_fuzzy_alarm_after_two_outliers_and_release();
+    test_igg_weights_on_crafted_residuals();
+    test_akf_q_scale_clamped_and_r_star();
+    test_bad_input_leaves_state_in_every_mode();
+    test_more_rows_than_states();
+    test_long_run_p_stays_spd_every_mode();
+    TEST_MAIN_END();
+}
