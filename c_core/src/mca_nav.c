@@ -486,6 +486,9 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             }
             if (observe) {
                 (void)gravity_obs(nav, e, NULL, acc, r_acc); /* failures are counted skips */
+            }
+            /* the course observation does not depend on the roll/pitch attempt (GPS step 6) */
+            if (nav->aligned) {
                 const float speed = sqrtf(vel[0] * vel[0] + vel[1] * vel[1]);
                 if (nav->cfg.yaw_source == MCA_YAW_COG && has_vne && speed >= nav->cfg.cog_min_speed_mps &&
                     speed > 0.0f) {

@@ -291,7 +291,8 @@ def gnss_to_c(gnss: np.ndarray) -> np.ndarray:
     fix["lat_e7"] = gnss["lat_e7"]
     fix["lon_e7"] = gnss["lon_e7"]
     fix["alt_mm"] = gnss["alt_mm"]
-    fix["vel_ned_mps"] = np.nan_to_num(gnss["vel_ned_mps"], nan=0.0)
+    # NaN where absent: the C reads a velocity only where flagged, and rejects a flagged NaN
+    fix["vel_ned_mps"] = gnss["vel_ned_mps"]
     fix["h_acc_m"] = gnss["h_acc_m"]
     fix["v_acc_m"] = gnss["v_acc_m"]
     fix["s_acc_mps"] = gnss["s_acc_mps"]

@@ -46,6 +46,8 @@ __all__ = [
     "roll_pitch_update",
     "skew",
     "wrap_pi",
+    "level_only",
+    "yaw_align",
     "yaw_row",
     "yaw_update",
 ]
@@ -285,15 +287,35 @@ class ObsResult:
     nu: np.ndarray | None = None
 
 
+def level_only(q: Quat, dtheta: np.ndarray) -> np.ndarray:
+    """Step 7: dtheta - (u . dtheta) u, u = C_nb(q)^T [0, 0, 1] (the NED vertical in body axes).
+
+    Roll and pitch carry no yaw information: the vertical component of a roll/pitch correction
+    would only be cross-covariance leaking into yaw.
+    """
+    u = dcm_from_quat(q)[2, :]  # row 2 of C_nb = C_nb^T e_down
+    d = np.asarray(dtheta, dtype=np.float64)
+    return d - float(u @ d) * u
+
+
 def _update_and_correct(
-    q: Quat, b: tuple[float, float, float], P: np.ndarray, H: np.ndarray, nu: np.ndarray, r: float
+    q: Quat,
+    b: tuple[float, float, float],
+    P: np.ndarray,
+    H: np.ndarray,
+    nu: np.ndarray,
+    r: float,
+    level: bool = False,
 ) -> ObsResult:
     """Section-1 update of dx from 0 with z = nu, then the error-state correction.
 
-    Raises SingularError / NonFiniteError (inputs unchanged).
+    level: remove the vertical component of dtheta first (roll/pitch observations, step 7).
+    P is the section-1 result either way. Raises SingularError / NonFiniteError (inputs unchanged).
     """
     m = H.shape[0]
     dx, P_new, report = kf_update(np.zeros(6), P, H, nu, np.full(m, r))
+    if level:
+        dx = np.concatenate([level_only(q, dx[:3]), dx[3:]])
     q_new, b_new = correct(q, b, dx)
     if not (all(math.isfinite(v) for v in q_new) and all(math.isfinite(v) for v in b_new)):
         raise NonFiniteError("attitude correction produced a non-finite state")
@@ -328,7 +350,7 @@ def roll_pitch_update(
     H = np.zeros((2, 6))  # step 5
     H[:, :3] = euler_rate_rows(phi_d, theta_d) @ delay_transport(q_d, q)
     r = roll_pitch_noise(G, g, r_acc, cfg)  # step 6
-    return _update_and_correct(q, b, P, H, nu, r)  # step 7
+    return _update_and_correct(q, b, P, H, nu, r, level=True)  # step 7
 
 
 # --------------------------------------------------------------------------------------
@@ -364,3 +386,18 @@ def yaw_update(
     H = np.zeros((1, 6))
     H[0, :3] = yaw_row(phi_d, theta_d) @ delay_transport(q_d, q)
     return _update_and_correct(q, b, P, H, nu, sigma2)
+
+
+def yaw_align(q: Quat, P: np.ndarray, psi_m: float, sigma2: float) -> tuple[Quat, np.ndarray]:
+    """Yaw alignment on the first yaw observation (ALGORITHMS.md 7): returns (q, P).
+
+    q = quaternion of (phi, theta, psi_m), phi and theta of the current q; row and column 2 of
+    P zeroed and P[2][2] = sigma2 (body z taken as the yaw axis, a small-tilt approximation).
+    """
+    phi, theta, _ = euler_from_quat(q)
+    q_new = quat_from_euler(phi, theta, psi_m)
+    P_new = np.array(P, dtype=np.float64)
+    P_new[2, :] = 0.0
+    P_new[:, 2] = 0.0
+    P_new[2, 2] = sigma2
+    return q_new, P_new

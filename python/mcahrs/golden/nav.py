@@ -9,49 +9,61 @@ Each step either succeeds or raises an :class:`mcahrs.errors.McaError` subclass 
 state unchanged (the one documented exception: ``BadDtError`` from the IMU step re-anchors
 the IMU time).
 
-Choices where ALGORITHMS.md leaves room (to be confirmed against the C core / the spec)
+Choices where ALGORITHMS.md leaves room (checked against the spec as of its "Times" and
+"Yaw alignment" paragraphs, and step by step against the C core in
+tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
-1.  Durations in the config (``grav_period_s``, ``gps_timeout_s``, ``init_still_s``,
-    ``init_timeout_s``, ``cs_lag_s``, the 10 s of ``yaw_unobserved``) become integer
-    microseconds once, ``round(x * 1e6)``, and every time comparison is done in integer us
-    (``100000 * 1e-6 != 0.1`` in floating point). The alignment window time is the integer
-    sum of its samples' ``dt_us``.
-2.  ``MCA_HIST_LEN`` is 50 as ALGORITHMS.md 8 now says (the brief said 64; ``Nav(hist_len=)``
-    takes either). History interval accumulator: reset to 0 (not carried over) at each push.
-    Lookup: smallest ``|t_entry - t|``, ties to the older; ``t <`` oldest entry time, or an
-    empty ring, is a miss.
+1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
+    ``init_still_s``, ``init_timeout_s``, ``cs_lag_s``, ``imu_dt_max_s``, the CS ``dt_max_s``
+    and ``tau_a_s`` in the "4 tau_a" limit) becomes integer microseconds once,
+    ``round(x * 1e6)``, and every time comparison is made in integer us. The alignment window
+    time is the integer sum of its samples' ``dt_us``. Formulas (``exp(-age/tau_a)``,
+    ``r_acc``) use the configured seconds.
+2.  ``MCA_HIST_LEN`` is 50 (ALGORITHMS.md 8; ``Nav(hist_len=)`` takes another size). History
+    interval accumulator: reset to 0 (not carried over) at each push. Lookup: smallest
+    ``|t_entry - t|``, ties to the older; ``t <`` oldest entry time, or an empty ring, is a miss.
 3.  Lost-GPS roll/pitch timer: due when ``t_us - t_last >= grav_period_us``; ``t_last`` is the
-    alignment sample's time, then the time of the last due attempt (made or skipped).
-    ``r_acc = nogps_rp_var`` in every comp_mode.
+    alignment sample's time, then the time of the last due attempt (made or skipped). The
+    centripetal term uses the bias after this sample's propagation (propagation leaves ``b``
+    unchanged) and the NE velocity of the last accepted fix (the home fix or a CS
+    re-initialisation included); ``r_acc`` uses the horizontal ``sigma_a0`` and ``tau_a``.
 4.  A roll/pitch or yaw observation whose Kalman update fails (SINGULAR / NONFINITE) counts
     as skipped; it never changes the status of the step (IMU / GPS / mag) that made it.
 5.  GPS step: accuracies that are NaN, infinite or <= 0 use the configured defaults; the
     altitude range is checked only when the fix has altitude (an absent value is not looked
     at). ``a_last`` (the lost-GPS decay start) is the CS ``a`` after the update, 0 after a
-    home fix or a CS re-initialisation.
+    home fix or a CS re-initialisation. The yaw-uncertainty term of step 5 uses ``P[2][2]``
+    as it is at the GPS step, before that step's observations.
 6.  Course over ground needs the NE-velocity flag (``speed_mps``/``course_rad`` are not used);
-    its ``s_acc`` is the fix's effective ``s_acc`` (fix value, else ``gps_vel_sigma_mps`` = 0.2),
-    not a separate 0.1 default. It uses the history entry nearest ``t_fix`` (skipped on a miss;
-    saturation does not matter to it) and is made even when the roll/pitch one was skipped.
-7.  ``yaw0_var_rad2`` of the attitude config is used as given: the default (ground vehicle,
-    no yaw source) is (180 deg)^2; the ``fixedwing`` and ``multirotor`` presets set (30 deg)^2.
-    A caller who sets ``yaw_source`` by hand sets ``yaw0_var_rad2`` too. Preset ``tau_a``
-    applies to both the horizontal and the vertical CS axes.
+    its ``s_acc`` is the fix's effective ``s_acc`` (fix value, else ``gps_vel_sigma_mps``). It
+    uses the history entry nearest ``t_fix`` (skipped on a miss; saturation does not matter to
+    it) and is made even when the roll/pitch one was skipped.
+7.  Presets (ALGORITHMS.md 8): every preset has a yaw source, so every preset sets
+    ``yaw0_var_rad2 = (30 deg)^2``; ``AttConfig()`` alone keeps the no-yaw-source (180 deg)^2,
+    and a caller who sets ``yaw_source = 0`` by hand sets ``yaw0_var_rad2`` too. All presets:
+    horizontal CS ``sigma_a0 = 1.0``, ``tau_a = 2`` on N, E and D (the vertical ``sigma_a0``
+    stays the section-2 default 0.3).
 8.  Magnetometer: non-finite is NONFINITE even when it is not the yaw source; ``|m_b| == 0`` is
     skipped with status OK; the one-per-``grav_period`` limit runs on the magnetometer's
-    ``t_us`` and only observations attempted restart it.
+    ``t_us`` and only observations attempted (not zero vectors) restart it.
 9.  Flags: ``saturated`` is sticky (any accepted IMU sample with a ``dt``, aligned or not);
     ``grav_skipped`` and ``hist_miss`` describe the latest roll/pitch attempt (course-over-
     ground lookups do not touch them); ``yaw_unobserved``: ``yaw_source == 0``, no yaw
     observation yet, or the last one more than 10 s of IMU time ago (its time is the newest
-    IMU time when it was made). Before home / alignment the outputs are the zero state
-    (q = [1, 0, 0, 0], P = 0, CS x = P = 0); ``rp_T`` and ``gps_T`` are NaN until first set, and
-    ``gps_T`` of an axis keeps its last value when that axis is not updated.
+    IMU time when it was made; the yaw alignment counts as one). Before home / alignment the
+    outputs are the zero state (q = [1, 0, 0, 0], P = 0, CS x = P = 0); ``rp_T`` and ``gps_T``
+    are NaN until first set, and ``gps_T`` of an axis keeps its last value when that axis is
+    not updated.
 10. Output Euler order is (roll, pitch, yaw); CS P diagonals are flattened axis-major:
     ``[N_pp, N_vv, N_aa, E_pp, E_vv, E_aa, D_pp, D_vv, D_aa]``.
 11. Roll/pitch attempts counted (made / skipped): every GPS-step attempt when aligned (mode 2
     without a usable previous fix counts as skipped; a CS re-initialisation makes none) and
     every due lost-GPS attempt.
+12. Yaw alignment (ALGORITHMS.md 7): the first yaw observation *made*; one that would be
+    skipped (tilt above ``max_tilt_obs``, a history miss for course over ground, speed below
+    ``cog_min_speed``) does not align. Once per filter (``reset`` re-arms it).
+13. The robust update modes (ALGORITHMS.md 5) are not modelled here: every navigation update
+    is the plain section-1 update.
 """
 
 from __future__ import annotations
@@ -158,19 +170,38 @@ def _us(seconds: float) -> int:
 # --------------------------------------------------------------------------------------
 
 
+_YAW0_WITH_SOURCE = math.radians(30.0) ** 2  # ALGORITHMS.md 7: yaw0 with a yaw source
+
+
+def _preset_cs_h() -> CsAxisConfig:
+    """Horizontal CS of every preset (ALGORITHMS.md 8): sigma_a0 = 1.0, tau_a = 2."""
+    return replace(CsAxisConfig.horizontal(), sigma_a0_mps2=1.0, tau_a_s=2.0)
+
+
+def _preset_cs_v() -> CsAxisConfig:
+    """Vertical CS of every preset: the section-2 defaults with tau_a = 2."""
+    return replace(CsAxisConfig.vertical(), tau_a_s=2.0)
+
+
+def _preset_att() -> att.AttConfig:
+    """Attitude configuration of every preset: a yaw source, so yaw0 = (30 deg)^2."""
+    return replace(att.AttConfig(), yaw0_var_rad2=_YAW0_WITH_SOURCE)
+
+
 @dataclass(frozen=True)
 class NavConfig:
-    """Navigation configuration. The plain default is a ground vehicle."""
+    """Navigation configuration. The plain default is the ground-vehicle preset."""
 
-    cs_h: CsAxisConfig = field(default_factory=CsAxisConfig.horizontal)  # CS axes N, E
-    cs_v: CsAxisConfig = field(default_factory=CsAxisConfig.vertical)  # CS axis D
-    att: att.AttConfig = field(default_factory=att.AttConfig)
+    cs_h: CsAxisConfig = field(default_factory=_preset_cs_h)  # CS axes N, E
+    cs_v: CsAxisConfig = field(default_factory=_preset_cs_v)  # CS axis D
+    att: att.AttConfig = field(default_factory=_preset_att)
     comp_mode: int = COMP_CS  # 0 off, 1 CS maneuver compensation, 2 GPS velocity differencing
-    yaw_source: int = YAW_NONE  # 0 none, 1 magnetometer, 2 course over ground
-    cs_lag_s: float = 0.3  # lag of the CS acceleration behind the truth (pairing delay)
+    yaw_source: int = YAW_COG  # 0 none, 1 magnetometer, 2 course over ground
+    cs_lag_s: float = 0.2  # lag of the CS acceleration behind the truth (pairing delay)
     gps_timeout_s: float = 1.5  # no fix for this long: GPS lost
     grav_period_s: float = 0.1  # observation period while GPS is lost or never seen
-    nogps_rp_var_rad2: float = 0.05**2  # roll/pitch observation variance added when GPS is lost
+    nogps_rp_var_rad2: float = 0.05**2  # roll/pitch observation variance added when GPS is lost (base)
+    nogps_centripetal: int = 1  # without GPS, remove w x [V, 0, 0] (V: last fix speed)
     gravity_mps2: float = 0.0  # > 0: this constant; 0: normal gravity at home
     imu_dt_max_s: float = 0.1  # longest accepted IMU step
     init_still_s: float = 1.0  # averaging window of the initial alignment
@@ -183,35 +214,45 @@ class NavConfig:
     gps_vel_sigma_mps: float = 0.2  # used when a fix gives no s_acc
     mag_declination_rad: float = 0.0
     mag_yaw_sigma_rad: float = 0.05
-    cog_min_speed_mps: float = 5.0
+    cog_min_speed_mps: float = 3.0
     cog_sigma0_rad: float = 0.05
 
     @classmethod
     def ground_vehicle(cls) -> NavConfig:
-        """The plain default."""
+        """The plain default: yaw from course over ground above 3 m/s, cs_lag 0.2."""
         return cls()
 
     @classmethod
     def fixedwing(cls) -> NavConfig:
-        """Fixed-wing preset: yaw from course over ground, a_max_h 8, tau_a 3, cs_lag 0.3."""
-        return cls._preset(YAW_COG, a_max_h=8.0, tau_a=3.0, cs_lag=0.3)
-
-    @classmethod
-    def multirotor(cls) -> NavConfig:
-        """Multirotor preset: yaw from the magnetometer, a_max_h 5, tau_a 1, cs_lag 0.2."""
-        return cls._preset(YAW_MAG, a_max_h=5.0, tau_a=1.0, cs_lag=0.2)
-
-    @classmethod
-    def _preset(cls, yaw_source: int, a_max_h: float, tau_a: float, cs_lag: float) -> NavConfig:
+        """Fixed-wing preset: yaw from course over ground above 5 m/s, a_max_h 8, cs_lag 0.2."""
         base = cls()
         return replace(
             base,
-            cs_h=replace(base.cs_h, a_max_mps2=a_max_h, tau_a_s=tau_a),
-            cs_v=replace(base.cs_v, tau_a_s=tau_a),
-            att=replace(base.att, yaw0_var_rad2=math.radians(30.0) ** 2),
-            yaw_source=yaw_source,
-            cs_lag_s=cs_lag,
+            cs_h=replace(base.cs_h, a_max_mps2=8.0),
+            yaw_source=YAW_COG,
+            cog_min_speed_mps=5.0,
+            cs_lag_s=0.2,
         )
+
+    @classmethod
+    def multirotor(cls) -> NavConfig:
+        """Multirotor preset: yaw from the magnetometer, a_max_h 5, cs_lag 0.3, no centripetal term."""
+        base = cls()
+        return replace(
+            base,
+            cs_h=replace(base.cs_h, a_max_mps2=5.0),
+            yaw_source=YAW_MAG,
+            cs_lag_s=0.3,
+            nogps_centripetal=0,
+        )
+
+    @classmethod
+    def preset(cls, name: str) -> NavConfig:
+        """A preset by name: ``ground``, ``fixedwing`` or ``multirotor``."""
+        makers = {"ground": cls.ground_vehicle, "fixedwing": cls.fixedwing, "multirotor": cls.multirotor}
+        if name not in makers:
+            raise BadConfigError(f"unknown preset {name!r}; known: {', '.join(makers)}")
+        return makers[name]()
 
     def validate(self) -> None:
         """Raise BadConfigError on any value out of range."""
@@ -226,9 +267,11 @@ class NavConfig:
             raise BadConfigError(f"comp_mode must be 0, 1 or 2, got {self.comp_mode!r}")
         if self.yaw_source not in (YAW_NONE, YAW_MAG, YAW_COG):
             raise BadConfigError(f"yaw_source must be 0, 1 or 2, got {self.yaw_source!r}")
+        if self.nogps_centripetal not in (0, 1):  # True/False compare equal to 1/0
+            raise BadConfigError(f"nogps_centripetal must be 0 or 1, got {self.nogps_centripetal!r}")
         nonneg = ("cs_lag_s", "nogps_rp_var_rad2", "gravity_mps2")
         for f in fields(self):
-            if f.name in ("cs_h", "cs_v", "att", "comp_mode", "yaw_source"):
+            if f.name in ("cs_h", "cs_v", "att", "comp_mode", "yaw_source", "nogps_centripetal"):
                 continue
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
@@ -334,12 +377,15 @@ class Nav:
             raise BadConfigError("cfg must be a NavConfig")
         cfg.validate()
         self.cfg = cfg
-        # Durations in integer us (choice 1).
+        # Durations in integer us, once (ALGORITHMS.md 8, Times).
         self._grav_period_us = _us(cfg.grav_period_s)
         self._gps_timeout_us = _us(cfg.gps_timeout_s)
         self._init_still_us = _us(cfg.init_still_s)
         self._init_timeout_us = _us(cfg.init_timeout_s)
         self._cs_lag_us = _us(cfg.cs_lag_s)
+        self._imu_dt_max_us = _us(cfg.imu_dt_max_s)
+        self._cs_dt_max_us = min(_us(cfg.cs_h.dt_max_s), _us(cfg.cs_v.dt_max_s))
+        self._tau_a_us = (_us(cfg.cs_h.tau_a_s), _us(cfg.cs_h.tau_a_s), _us(cfg.cs_v.tau_a_s))
         self.reset()
 
     def reset(self) -> None:
@@ -358,6 +404,7 @@ class Nav:
         self.q: att.Quat = (1.0, 0.0, 0.0, 0.0)
         self.b: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self.P = np.zeros((6, 6))
+        self.yaw_aligned = False  # the first yaw observation aligns yaw (ALGORITHMS.md 7)
         # history ring and its accumulator
         self.hist: deque[HistEntry] = deque(maxlen=self.hist_len)
         self.acc_f = [0.0, 0.0, 0.0]
@@ -403,7 +450,7 @@ class Nav:
             raise TimeBackwardsError(f"IMU time {t_us} <= {self.t_imu_us}")
         dt_us = t_us - self.t_imu_us
         dt = dt_us * 1e-6
-        if dt > self.cfg.imu_dt_max_s:
+        if dt_us > self._imu_dt_max_us:
             self.t_imu_us = t_us  # re-anchor, nothing else
             raise BadDtError(f"IMU dt {dt} s > {self.cfg.imu_dt_max_s}")
         sat = max(abs(f[0]), abs(f[1]), abs(f[2])) >= self.cfg.accel_sat_mps2
@@ -418,7 +465,7 @@ class Nav:
         self.saturated_seen = self.saturated_seen or sat
         self._hist_accumulate(t_us, dt_us, f, sat)
         if self._gps_lost(t_us) and t_us - self.t_grav_us >= self._grav_period_us:  # step 6
-            self._lost_gps_observation(t_us)
+            self._lost_gps_observation(t_us, w)
 
     def _align_step(self, t_us: int, dt_us: int, w: tuple, f: tuple) -> None:
         """ALGORITHMS.md 8, IMU step 4."""
@@ -534,29 +581,51 @@ class Nav:
         self.hist_miss = False
 
     def _yaw(self, psi_m: float, sigma2: float, q_d: att.Quat) -> None:
-        try:
-            res = att.yaw_update(self.q, self.b, self.P, psi_m, sigma2, q_d, self.cfg.att)
-        except McaError:  # choice 4
-            return
-        if res.made:
+        """Yaw observation (ALGORITHMS.md 7); the first one made aligns yaw instead of updating."""
+        if not self.yaw_aligned:
+            if abs(att.euler_from_quat(q_d)[1]) > self.cfg.att.max_tilt_obs_rad:
+                return  # skipped like any yaw observation (choice 12)
+            self.q, self.P = att.yaw_align(self.q, self.P, psi_m, sigma2)
+            self.yaw_aligned = True
+        else:
+            try:
+                res = att.yaw_update(self.q, self.b, self.P, psi_m, sigma2, q_d, self.cfg.att)
+            except McaError:  # choice 4
+                return
+            if not res.made:
+                return
             self.q, self.b, self.P = res.q, res.b, res.P
-            self.n_yaw_made += 1
-            self.t_yaw_us = self.t_imu_us
+        self.n_yaw_made += 1
+        self.t_yaw_us = self.t_imu_us
 
-    def _lost_gps_observation(self, t_us: int) -> None:
-        """ALGORITHMS.md 8, IMU step 6."""
+    def _lost_gps_observation(self, t_us: int, gyro: tuple[float, float, float]) -> None:
+        """ALGORITHMS.md 8, IMU step 6 (gyro: this sample's raw gyro)."""
         cfg = self.cfg
         self.t_grav_us = t_us
-        a_n = (0.0, 0.0, 0.0)
+        a_n = np.zeros(3)
         if cfg.comp_mode == COMP_CS and self.t_lastfix_us is not None:
-            age_s = (t_us - self.t_lastfix_us) * 1e-6
-            taus = (cfg.cs_h.tau_a_s, cfg.cs_h.tau_a_s, cfg.cs_v.tau_a_s)
-            a_n = tuple(  # type: ignore[assignment]
-                a * math.exp(-age_s / tau) if age_s <= 4.0 * tau else 0.0
-                for a, tau in zip(self.a_last, taus, strict=True)
-            )
+            age_us = t_us - self.t_lastfix_us
+            for i in range(3):
+                tau_us = self._tau_a_us[i]
+                if age_us <= 4 * tau_us:
+                    a_n[i] = self.a_last[i] * math.exp(-age_us / tau_us)
+        if (
+            cfg.comp_mode in (COMP_CS, COMP_GPS_DIFF)
+            and cfg.nogps_centripetal
+            and self.t_lastfix_us is not None
+            and self.prev_has_vel[0]
+        ):
+            # Centripetal acceleration of a vehicle moving along its nose at the last fix's
+            # ground speed: C_nb(q) (w x [V, 0, 0]) = C_nb(q) [0, w_z V, -w_y V].
+            speed = math.hypot(self.prev_vel[0], self.prev_vel[1])
+            w = (gyro[0] - self.b[0], gyro[1] - self.b[1], gyro[2] - self.b[2])
+            a_n = a_n + att.dcm_from_quat(self.q) @ np.array([0.0, w[2] * speed, -w[1] * speed])
+        # Unknown maneuver of variance sigma_a0^2 correlated over tau_a, seen every grav_period.
+        r_acc = cfg.nogps_rp_var_rad2 + cfg.cs_h.sigma_a0_mps2**2 * cfg.cs_h.tau_a_s / (
+            self.g**2 * cfg.grav_period_s
+        )
         entry = self.hist[-1] if self.hist else None
-        self._roll_pitch(entry, a_n, cfg.nogps_rp_var_rad2, self.q)
+        self._roll_pitch(entry, (float(a_n[0]), float(a_n[1]), float(a_n[2])), r_acc, self.q)
 
     # ----------------------------------------------------------------------------------
     # GPS step
@@ -620,8 +689,9 @@ class Nav:
         lat0, lon0, alt0 = self.home
         ned = geo.ned_from_home(fx.lat_e7, fx.lon_e7, fx.alt_mm if has_alt else alt0, lat0, lon0, alt0)
         assert self.t_lastfix_us is not None
-        T = (fx.t_us - self.t_lastfix_us) * 1e-6
-        if T > min(cfg.cs_h.dt_max_s, cfg.cs_v.dt_max_s):
+        T_us = fx.t_us - self.t_lastfix_us
+        T = T_us * 1e-6
+        if T_us > self._cs_dt_max_us:
             # Re-initialise instead; compensation acceleration 0; steps 4-6 skipped.
             self.cs.init(ned, v0)
             self.a_last = (0.0, 0.0, 0.0)
@@ -666,6 +736,9 @@ class Nav:
             r_acc = 2.0 * fx.s_acc**2 / (dt_fix**2 * self.g**2)
         else:
             a_n, r_acc = (0.0, 0.0, 0.0), 0.0
+        if cfg.comp_mode in (COMP_CS, COMP_GPS_DIFF):
+            # A yaw error d psi turns the horizontal compensation by d psi (body z as yaw axis).
+            r_acc += (a_n[0] ** 2 + a_n[1] ** 2) * float(self.P[2, 2]) / self.g**2
 
         # Step 6: observations.
         if self.aligned:
