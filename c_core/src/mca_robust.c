@@ -25,6 +25,7 @@ void mca_robust_config_default(mca_robust_config_t *cfg)
     cfg->akf_q_max = 10.0f;
     cfg->igg_k0 = 1.5f;
     cfg->igg_k1 = 3.0f;
+    cfg->reject_reset_n = 5u;
 }
 
 mca_status_t mca_robust_config_check(const mca_robust_config_t *c)
@@ -68,7 +69,8 @@ size_t mca_kf_ws_len(size_t n, size_t m)
  * Only the modes that use the memory check it. */
 static int memory_ok(const mca_robust_state_t *rs)
 {
-    if (rs->win_n > MCA_AKF_WINDOW || rs->win_head >= MCA_AKF_WINDOW || rs->alarm > 1u || rs->started > 1u) {
+    if (rs->win_n > MCA_AKF_WINDOW || rs->win_head >= MCA_AKF_WINDOW || rs->alarm > 1u || rs->started > 1u ||
+        rs->n_reject == UINT8_MAX) {
         return 0;
     }
     if (!mca_all_finite(rs->win, MCA_AKF_WINDOW) || !mca_all_finite(rs->nu_mean, MCA_MEAS_MAX) ||
@@ -566,15 +568,45 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
         break;
     }
 
+    /* Lock-up guard (ALGORITHMS.md 5): the reject_reset_n-th rejection in a row is replaced by
+     * a plain update and the memory is cleared, so a filter whose innovations only grow while
+     * it is rejecting (a maneuver taken for an outlier) cannot run open loop for ever. */
+    const int reset = pl.rejected && rs != NULL && rc != NULL && rc->reject_reset_n > 0u &&
+                      (unsigned)rs->n_reject + 1u >= (unsigned)rc->reject_reset_n;
+    int c_has_d = mode == MCA_ROBUST_IGG3;
+    if (reset) {
+        memset(&pl, 0, sizeof(pl));
+        pl.gamma = 1.0f;
+        pl.keep = (1u << m) - 1u;
+        pl.factor = 1.0f;
+        pl.q_scale = 1.0f;
+        /* C and its factor again without any IGG increment (kk still holds P H^T) */
+        mca_mat_mul(c, h, kk, m, n, m);
+        for (size_t i = 0; i < m * m; ++i) {
+            c[i] += r[i];
+        }
+        mca_mat_symmetrize(c, m);
+        if (mca_cholesky(l, c, m) != MCA_OK) {
+            return MCA_ERR_SINGULAR;
+        }
+        c_has_d = 0;
+        if (rep != NULL) {
+            for (size_t i = 0; i < m; ++i) {
+                rep->w[i] = 1.0f;
+            }
+        }
+    }
     if (!pl.rejected) {
         const mca_status_t st = apply(x, p, n, h, r, m, &pl, a, b, pn, kk, t, c, l, xn, y,
-                                      refactor_needed(&pl, m), mode == MCA_ROBUST_IGG3);
+                                      refactor_needed(&pl, m), c_has_d);
         if (st != MCA_OK) {
             return st; /* x, p, rs untouched */
         }
     }
     /* Commit the memory (the update, if any, is already in x, p). */
-    if (mode == MCA_ROBUST_AKF) {
+    if (reset) {
+        mca_robust_state_init(rs);
+    } else if (mode == MCA_ROBUST_AKF) {
         for (size_t i = 0; i < m; ++i) {
             float r_new, s_new;
             akf_row(rs, rc->akf_forget, i, y[i], &r_new, &s_new);
@@ -592,7 +624,11 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
         rs->d_k = pl.d_k;
         rs->alarm = pl.alarm;
     }
+    if (rs != NULL && !reset) {
+        rs->n_reject = pl.rejected ? (uint8_t)(rs->n_reject < 254u ? rs->n_reject + 1u : 254u) : 0u;
+    }
     if (rep != NULL) {
+        rep->reset = reset ? 1u : 0u;
         rep->factor = pl.rejected ? 1.0f : pl.factor;
         rep->detected = pl.detected;
         rep->rejected = pl.rejected ? 1u : 0u;

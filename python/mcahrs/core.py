@@ -462,6 +462,7 @@ def _report_dict(rep: Any) -> dict[str, Any]:
         "q_scale": float(rep.q_scale),
         "detected": bool(rep.detected),
         "rejected": bool(rep.rejected),
+        "reset": bool(rep.reset),
         "alarm": bool(rep.alarm),
     }
 

@@ -369,3 +369,44 @@ def test_c_and_golden_agree_on_errors_and_leave_state(name: str) -> None:
             core.kf_update(x, p, h, z, rr, ccfg, cstate)
     assert cstate.as_dict() == c_before
     assert (list(gstate.win), float(gstate.d_k), bool(gstate.alarm), float(gstate.q_scale)) == g_before
+
+
+# ------------------------------------------------------------------ lock-up guard
+
+
+@pytest.mark.parametrize("mode", ["fuzzy", "igg3"])
+@pytest.mark.parametrize("reset_n", [0, 5])
+def test_lock_up_guard_replaces_the_nth_rejection_by_a_plain_update(mode: str, reset_n: int) -> None:
+    """A filter whose innovations stay huge (a maneuver taken for an outlier) is rejected by
+    fuzzy-reject and IGG-III for ever unless the guard of ALGORITHMS.md 5 steps in; C and
+    golden agree on where it fires and on the state after it."""
+    n, m = 5, 2
+    x = np.zeros(n, np.float32)
+    P = np.diag([4.0, 1.0, 1.0, 2.0, 0.01]).astype(np.float32)
+    H = np.array([[1, 0, 0, 1, 0], [0, 1, 0, 0, 1]], np.float32)
+    R = np.diag([4.0, 0.01]).astype(np.float32)
+    z = np.array([60.0, 8.0], np.float32)  # far outside C every time
+    cfg_c = core.robust_config(mode, reject_reset_n=reset_n)
+    st_c = core.RobustFilterState()
+    cfg_g = gr.RobustConfig(mode=mode, reject_reset_n=reset_n)
+    st_g = gr.RobustState()
+    xc, Pc, xg, Pg = x, P, x.astype(np.float64), P.astype(np.float64)
+    resets_c, resets_g, rejected_c = [], [], []
+    for _ in range(12):
+        xc, Pc, rc_ = core.kf_update(xc, Pc, H, z, R, cfg_c, st_c)
+        xg, Pg, rg_ = gr.robust_update(xg, Pg, H, z, R, cfg_g, st_g)
+        resets_c.append(rc_["reset"])
+        resets_g.append(rg_.reset)
+        rejected_c.append(rc_["rejected"])
+        assert rc_["rejected"] == rg_.rejected
+        # float32 vs float64 of one plain update with a 30-sigma innovation
+        np.testing.assert_allclose(xc, xg, rtol=1e-4, atol=1e-4)
+    assert resets_c == resets_g
+    first = rejected_c.index(True)  # fuzzy alarms only once D > 1 (second epoch); IGG-III at once
+    if reset_n == 0:
+        assert not any(resets_c) and all(rejected_c[first:])  # locked up: never sees a fix again
+    else:
+        k = first + reset_n - 1
+        assert resets_c[k] and not rejected_c[k]  # the 5th rejection in a row became a plain update
+        assert not any(resets_c[:k])
+        assert np.abs(xc[0] + xc[3] - 60.0) < np.abs(x[0] + x[3] - 60.0)  # it moved towards the fixes

@@ -15,7 +15,7 @@
 #include "mca_geo.h"
 
 /** History ring: entries and their spacing (ALGORITHMS.md 8). */
-#define MCA_HIST_LEN 50
+#define MCA_HIST_LEN 48
 #define MCA_HIST_DT_US 20000
 
 /** comp_mode */
@@ -47,7 +47,7 @@ typedef struct {
     mca_att_config_t att;       /**< attitude filter */
     uint8_t comp_mode;          /**< MCA_COMP_* */
     uint8_t yaw_source;         /**< MCA_YAW_* */
-    float cs_lag_s;             /**< pairing delay of the CS acceleration, [0, 0.98] (history span) */
+    float cs_lag_s;             /**< pairing delay of the CS acceleration, [0, 0.94] (history span) */
     float gps_timeout_s;        /**< no fix this long: GPS lost, > 0 */
     float grav_period_s;        /**< observation period without GPS, > 0 */
     float nogps_rp_var_rad2;    /**< roll/pitch variance added without GPS (base), >= 0 */

@@ -37,6 +37,7 @@ typedef struct {
     uint8_t mode;          /**< mca_robust_mode_t */
     uint8_t fuzzy_reject;  /**< fuzzy alarm: 1 reject the update, 0 inflate it */
     uint8_t akf_window;    /**< AKF window length, 1..MCA_AKF_WINDOW */
+    uint8_t reject_reset_n; /**< lock-up guard: the n-th rejection in a row updates plain instead (0: off) */
     float akf_forget;      /**< AKF recursive R-estimate weight, (0, 1] */
     float akf_q_min;       /**< AKF Q factor clamp, > 0 */
     float akf_q_max;       /**< AKF Q factor clamp, >= akf_q_min */
@@ -56,6 +57,7 @@ typedef struct {
     uint8_t win_head;              /**< AKF: next slot */
     uint8_t alarm;                 /**< fuzzy: alarm raised */
     uint8_t started;               /**< AKF: row statistics initialised */
+    uint8_t n_reject;              /**< rejected updates in a row (lock-up guard) */
 } mca_robust_state_t;
 
 /** What one update did. Sizes fixed; only the first m entries are meaningful. */
@@ -71,6 +73,7 @@ typedef struct {
     uint8_t detected;                           /**< the mode's test flagged an outlier */
     uint8_t rejected;                           /**< the update was not applied (x, P unchanged) */
     uint8_t alarm;                              /**< fuzzy detector alarm state after this update */
+    uint8_t reset;                              /**< lock-up guard fired: memory cleared, plain update */
 } mca_update_report_t;
 
 /**

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -212,6 +212,7 @@ class RobustConfig:
     akf_q_max: float = 10.0
     igg_k0: float = 1.5
     igg_k1: float = 3.0
+    reject_reset_n: int = 5  # lock-up guard: the n-th rejection in a row updates plain (0: off)
 
     def validate(self) -> None:
         """Raise BadConfigError unless every field is in its documented range.
@@ -243,6 +244,10 @@ class RobustConfig:
             )
         if not 0.0 < self.igg_k0 < self.igg_k1:
             raise BadConfigError(f"need 0 < igg_k0 < igg_k1, got {self.igg_k0!r}, {self.igg_k1!r}")
+        if not (isinstance(self.reject_reset_n, int) and 0 <= self.reject_reset_n <= 255):
+            raise BadConfigError(
+                f"reject_reset_n must be an integer in [0, 255], got {self.reject_reset_n!r}"
+            )
 
 
 @dataclass
@@ -263,6 +268,7 @@ class RobustState:
     d_k: float = 0.0
     alarm: bool = False
     started: bool = False
+    n_reject: int = 0  # updates rejected in a row (lock-up guard)
 
 
 @dataclass(frozen=True)
@@ -284,6 +290,7 @@ class RobustReport(UpdateReport):
     detected: bool
     rejected: bool
     alarm: bool
+    reset: bool = False  # the lock-up guard replaced a rejection by a plain update
 
 
 # --------------------------------------------------------------------------------------
@@ -750,17 +757,30 @@ def robust_update(
     step = _Step(x=x, P=P, H=H, R=R, nu=nu, C=C, T=T)
     with np.errstate(over="ignore", invalid="ignore"):  # every result is checked for finiteness
         x_plus, P_plus, outcome = _MODE_UPDATES[cfg.mode](step, cfg, memory)
+    # Lock-up guard (ALGORITHMS.md 5): the reject_reset_n-th rejection in a row becomes a plain
+    # update with the nominal R and the memory starts afresh.
+    reset = bool(outcome.rejected) and 0 < cfg.reject_reset_n <= int(state.n_reject) + 1
+    if reset:
+        x_plus, P_plus, plain = kf_update(x, P, H, z, R)
+        memory = RobustState()
+        nu, C, T = plain.nu, plain.C, plain.T
+        outcome = replace(
+            outcome, factor=1.0, w=np.ones(step.m), q_scale=1.0, detected=False, rejected=False, alarm=False
+        )
+    else:
+        memory.n_reject = min(int(state.n_reject) + 1, 254) if outcome.rejected else 0
     # Step 6 extended to the memory: an update that would leave it non-finite (AKF e = nu^T nu
     # overflowing) changes nothing, like one that would leave x+ or P+ non-finite.
     if not _memory_is_finite(memory):
         raise NonFiniteError("update would leave a non-finite robust memory")
     # Commit: the only place the caller's memory changes.
     state.win, state.nu_mean, state.nu_var = memory.win, memory.nu_mean, memory.nu_var
-    state.q_scale, state.d_k, state.alarm, state.started = (
+    state.q_scale, state.d_k, state.alarm, state.started, state.n_reject = (
         memory.q_scale,
         memory.d_k,
         memory.alarm,
         memory.started,
+        memory.n_reject,
     )
     return (
         x_plus,
@@ -776,5 +796,6 @@ def robust_update(
             detected=bool(outcome.detected),
             rejected=bool(outcome.rejected),
             alarm=bool(outcome.alarm),
+            reset=reset,
         ),
     )
