@@ -380,7 +380,7 @@ def test_lock_up_guard_replaces_the_nth_rejection_by_a_plain_update(mode: str, r
     """A filter whose innovations stay huge (a maneuver taken for an outlier) is rejected by
     fuzzy-reject and IGG-III for ever unless the guard of ALGORITHMS.md 5 steps in; C and
     golden agree on where it fires and on the state after it."""
-    n, m = 5, 2
+    n = 5
     x = np.zeros(n, np.float32)
     P = np.diag([4.0, 1.0, 1.0, 2.0, 0.01]).astype(np.float32)
     H = np.array([[1, 0, 0, 1, 0], [0, 1, 0, 0, 1]], np.float32)
