@@ -8,6 +8,7 @@ set(MCA_CORE_SOURCES
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_att.c
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_nav.c
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_replay.c
+    ${CMAKE_CURRENT_LIST_DIR}/src/mca_ins.c
 )
 set(MCA_CORE_INCLUDE_DIR ${CMAKE_CURRENT_LIST_DIR}/include)
 # Warnings every build of the core uses (the issue's list plus a few that catch float bugs).

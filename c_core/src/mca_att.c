@@ -140,18 +140,13 @@ static void correct(mca_att_t *att, const float dx[6])
     }
 }
 
-/* C_D = C_nb(q_d)^T C_nb(q): current body to body at t_d. */
+/* C_D = C_nb(q_d)^T C_nb(q) = C(q_d^-1 (x) q): current body to body at t_d. */
 static void delay_transport(float c_d[9], const float q_d[4], const float q[4])
 {
-    float cd[9], c[9];
-    mca_quat_to_dcm(cd, q_d);
-    mca_quat_to_dcm(c, q);
-    for (size_t i = 0; i < 3u; ++i) {
-        for (size_t j = 0; j < 3u; ++j) {
-            c_d[i * 3u + j] = cd[0 * 3u + i] * c[0 * 3u + j] + cd[1 * 3u + i] * c[1 * 3u + j] +
-                              cd[2 * 3u + i] * c[2 * 3u + j];
-        }
-    }
+    const float qd_inv[4] = {q_d[0], -q_d[1], -q_d[2], -q_d[3]};
+    float qr[4];
+    mca_quat_mul(qr, qd_inv, q);
+    mca_quat_to_dcm(c_d, qr);
 }
 
 /* Update of the error state from zero with rows e (m x 3, at q_d), residual nu, diag R.
@@ -174,12 +169,13 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
                                            robust ? &att->rs : NULL, ws, MCA_ATT_WS_LEN, rep);
     if (st == MCA_OK) {
         if (level_only) {
-            float c[9];
-            mca_quat_to_dcm(c, att->q_nb);
-            /* u = C_nb^T e_down: third row of C_nb */
-            const float dot = c[6] * dx[0] + c[7] * dx[1] + c[8] * dx[2];
+            /* u = C_nb^T e_down: the third row of C_nb, straight from q */
+            const float *q = att->q_nb;
+            const float u[3] = {2.0f * (q[1] * q[3] - q[0] * q[2]), 2.0f * (q[2] * q[3] + q[0] * q[1]),
+                                1.0f - 2.0f * (q[1] * q[1] + q[2] * q[2])};
+            const float dot = u[0] * dx[0] + u[1] * dx[1] + u[2] * dx[2];
             for (size_t i = 0; i < 3u; ++i) {
-                dx[i] -= dot * c[6u + i];
+                dx[i] -= dot * u[i];
             }
         }
         correct(att, dx);
@@ -200,13 +196,12 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const floa
     if (!(g > 0.0f) || r_acc < 0.0f) {
         return MCA_ERR_BAD_ARG;
     }
-    float c[9];
-    mca_quat_to_dcm(c, q_d);
+    /* a_b = C_nb^T a_n (rotation by the conjugate, no 3 x 3 matrix); g_b = -(f - a_b) */
+    const float qd_inv[4] = {q_d[0], -q_d[1], -q_d[2], -q_d[3]};
     float gb[3];
+    mca_quat_rotate(gb, qd_inv, acc_n);
     for (size_t i = 0; i < 3u; ++i) {
-        /* a_b = C_nb^T a_n; g_b = -(f - a_b) */
-        const float ab = c[i] * acc_n[0] + c[3u + i] * acc_n[1] + c[6u + i] * acc_n[2];
-        gb[i] = ab - f[i];
+        gb[i] -= f[i];
     }
     const float gn = sqrtf(gb[0] * gb[0] + gb[1] * gb[1] + gb[2] * gb[2]);
     if (gn < 0.5f * g || gn > 1.5f * g) {

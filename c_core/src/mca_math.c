@@ -180,6 +180,21 @@ void mca_quat_from_rotvec(float q[4], const float rv_rad[3])
     q[3] = k * rv_rad[2];
 }
 
+void mca_quat_rotate(float v_n[3], const float q[4], const float v_b[3])
+{
+    /* v' = v + 2 w (u x v) + 2 u x (u x v), u = q.xyz */
+    const float ux = q[1], uy = q[2], uz = q[3];
+    const float tx = 2.0f * (uy * v_b[2] - uz * v_b[1]);
+    const float ty = 2.0f * (uz * v_b[0] - ux * v_b[2]);
+    const float tz = 2.0f * (ux * v_b[1] - uy * v_b[0]);
+    const float rx = v_b[0] + q[0] * tx + (uy * tz - uz * ty);
+    const float ry = v_b[1] + q[0] * ty + (uz * tx - ux * tz);
+    const float rz = v_b[2] + q[0] * tz + (ux * ty - uy * tx);
+    v_n[0] = rx;
+    v_n[1] = ry;
+    v_n[2] = rz;
+}
+
 void mca_quat_to_dcm(float c[9], const float q[4])
 {
     const float w = q[0], x = q[1], y = q[2], z = q[3];

@@ -136,49 +136,50 @@ static float norm3(const float v[3])
     return sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
 }
 
-static void align(mca_nav_t *nav, const float f_mean[3], const float bias[3])
+static void align(mca_nav_t *nav, const float f_mean[3], const float bias[3], float att_var_rad2)
 {
     const float eul[3] = {atan2f(-f_mean[1], -f_mean[2]),
                           atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])), 0.0f};
     float q[4];
     mca_quat_from_euler(q, eul);
-    (void)mca_att_init(&nav->att, &nav->cfg.att, q, bias); /* config checked at init */
+    mca_att_config_t acfg = nav->cfg.att;
+    acfg.att0_var_rad2 = att_var_rad2;
+    (void)mca_att_init(&nav->att, &acfg, q, bias); /* config checked at init */
+    nav->att.cfg.att0_var_rad2 = nav->cfg.att.att0_var_rad2;
     nav->aligned = 1u;
     nav->t_lastgrav_us = nav->t_imu_us;
 }
 
-/* ALGORITHMS.md 8, IMU step 4. */
+/* ALGORITHMS.md 8, IMU step 4: block means, and the all-time mean at the timeout. */
 static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f[3], uint32_t dt_us)
 {
-    const float g = nav->g_mps2;
-    const int still = norm3(w) <= nav->cfg.init_gyro_still_rps && fabsf(norm3(f) - g) <= nav->cfg.init_acc_still_mps2;
-    if (still) {
-        for (size_t i = 0; i < 3u; ++i) {
-            nav->init_f_sum[i] += f[i];
-            nav->init_w_sum[i] += w[i];
+    for (size_t i = 0; i < 3u; ++i) {
+        nav->init_f_sum[i] += f[i];
+        nav->init_w_sum[i] += w[i];
+        nav->init_f_all[i] += f[i];
+    }
+    nav->init_n++;
+    nav->init_n_all++;
+    nav->init_win_us += dt_us;
+    const float zero[3] = {0.0f, 0.0f, 0.0f};
+    if (nav->init_win_us >= us(nav->cfg.init_still_s)) {
+        const float inv = 1.0f / (float)nav->init_n;
+        const float fm[3] = {nav->init_f_sum[0] * inv, nav->init_f_sum[1] * inv, nav->init_f_sum[2] * inv};
+        const float wm[3] = {nav->init_w_sum[0] * inv, nav->init_w_sum[1] * inv, nav->init_w_sum[2] * inv};
+        if (norm3(wm) <= nav->cfg.init_gyro_still_rps &&
+            fabsf(norm3(fm) - nav->g_mps2) <= nav->cfg.init_acc_still_mps2) {
+            align(nav, fm, wm, nav->cfg.att.att0_var_rad2);
+            return;
         }
-        nav->init_n++;
-        nav->init_win_us += dt_us;
-    } else {
-        memset(nav->init_f_sum, 0, sizeof(nav->init_f_sum));
+        memset(nav->init_f_sum, 0, sizeof(nav->init_f_sum)); /* not still: the next block */
         memset(nav->init_w_sum, 0, sizeof(nav->init_w_sum));
         nav->init_n = 0u;
         nav->init_win_us = 0u;
     }
-    const float zero[3] = {0.0f, 0.0f, 0.0f};
-    if (nav->init_n > 0u && nav->init_win_us >= us(nav->cfg.init_still_s)) {
-        const float inv = 1.0f / (float)nav->init_n;
-        const float fm[3] = {nav->init_f_sum[0] * inv, nav->init_f_sum[1] * inv, nav->init_f_sum[2] * inv};
-        const float wm[3] = {nav->init_w_sum[0] * inv, nav->init_w_sum[1] * inv, nav->init_w_sum[2] * inv};
-        align(nav, fm, wm);
-    } else if (nav->t_imu_us - nav->t_first_us >= us(nav->cfg.init_timeout_s)) {
-        if (nav->init_n > 0u) {
-            const float inv = 1.0f / (float)nav->init_n;
-            const float fm[3] = {nav->init_f_sum[0] * inv, nav->init_f_sum[1] * inv, nav->init_f_sum[2] * inv};
-            align(nav, fm, zero);
-        } else {
-            align(nav, f, zero);
-        }
+    if (nav->t_imu_us - nav->t_first_us >= us(nav->cfg.init_timeout_s)) {
+        const float inv = 1.0f / (float)nav->init_n_all;
+        const float fa[3] = {nav->init_f_all[0] * inv, nav->init_f_all[1] * inv, nav->init_f_all[2] * inv};
+        align(nav, fa, zero, 25.0f * nav->cfg.att.att0_var_rad2);
     }
 }
 
@@ -245,8 +246,9 @@ static const mca_hist_entry_t *hist_newest(const mca_nav_t *nav)
 }
 
 /* One roll/pitch observation from a history entry; counts and flags. */
+/* rep: the caller's report buffer, reused (a report is 212 B of stack) */
 static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const float q_d[4], const float acc_n[3],
-                                float r_acc)
+                                float r_acc, mca_update_report_t *rep)
 {
     if (e == NULL) {
         nav->flags |= MCA_FLAG_HIST_MISS | MCA_FLAG_GRAV_SKIPPED;
@@ -259,13 +261,12 @@ static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const
         nav->n_grav_skip++;
         return MCA_OK;
     }
-    mca_update_report_t rep;
     const mca_status_t st = mca_att_update_gravity(&nav->att, e->f_b_mps2, acc_n, q_d != NULL ? q_d : e->q_nb,
-                                                   nav->g_mps2, r_acc, nav->ws, &rep);
+                                                   nav->g_mps2, r_acc, nav->ws, rep);
     if (st == MCA_OK) {
         nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
         nav->n_grav_obs++;
-        nav->last_rp_t = rep.t_stat;
+        nav->last_rp_t = rep->t_stat;
         return MCA_OK;
     }
     /* a gate or a failed update: skipped, not an error of the caller (ALGORITHMS.md 8) */
@@ -317,15 +318,16 @@ static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
         const float v = sqrtf(nav->vel_prev[0] * nav->vel_prev[0] + nav->vel_prev[1] * nav->vel_prev[1]);
         const float wy = gyro[1] - nav->att.bias_rps[1], wz = gyro[2] - nav->att.bias_rps[2];
         const float ab[3] = {0.0f, wz * v, -wy * v};
-        float c[9];
-        mca_quat_to_dcm(c, nav->att.q_nb);
+        float an[3];
+        mca_quat_rotate(an, nav->att.q_nb, ab);
         for (size_t i = 0; i < 3u; ++i) {
-            acc[i] += c[i * 3u] * ab[0] + c[i * 3u + 1u] * ab[1] + c[i * 3u + 2u] * ab[2];
+            acc[i] += an[i];
         }
     }
     const float g = nav->g_mps2, sa = nav->cfg.cs_h.sigma_a0_mps2;
     const float r_acc = nav->cfg.nogps_rp_var_rad2 + sa * sa * nav->cfg.cs_h.tau_a_s / (g * g * nav->cfg.grav_period_s);
-    (void)gravity_obs(nav, hist_newest(nav), nav->att.q_nb, acc, r_acc);
+    mca_update_report_t rep;
+    (void)gravity_obs(nav, hist_newest(nav), nav->att.q_nb, acc, r_acc, &rep);
 }
 
 mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], const float accel[3])
@@ -485,7 +487,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                 r_acc += (acc[0] * acc[0] + acc[1] * acc[1]) * nav->att.p[14] / g2;
             }
             if (observe) {
-                (void)gravity_obs(nav, e, NULL, acc, r_acc); /* failures are counted skips */
+                (void)gravity_obs(nav, e, NULL, acc, r_acc, &rep); /* failures are counted skips */
             }
             /* the course observation does not depend on the roll/pitch attempt (GPS step 6) */
             if (nav->aligned) {

@@ -401,6 +401,9 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
             return MCA_ERR_SINGULAR;
         }
     }
+    /* U = P H^T kept in a (n x m) for the Joseph step below */
+    float *u = a;
+    memcpy(u, kk, n * m * sizeof(float));
     /* K = P H^T C_eff^-1, row by row in place: C_eff k_i = (P H^T)_i over the kept columns */
     for (size_t i = 0; i < n; ++i) {
         float *row = &kk[i * m];
@@ -431,22 +434,27 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
     for (size_t i = 0; i < n; ++i) {
         xn[i] += x[i];
     }
-    /* Joseph: A = I - K H; P+ = A P A^T + K R_eff K^T (valid for any gain) */
-    mca_mat_mul(a, kk, h, n, m, n);
-    for (size_t i = 0; i < n * n; ++i) {
-        a[i] = -a[i];
+    /* Joseph, expanded: (I - K H) P (I - K H)^T + K R_eff K^T
+     *   = P - K U^T - U K^T + K S K^T,  U = P H^T, S = H P H^T + R_eff,
+     * an identity for any gain K (so it keeps Joseph's first-order insensitivity to gain
+     * errors) that costs O(n^2 m) instead of three n x n x n products, and is symmetric by
+     * construction: the upper triangle is computed and mirrored. */
+    float *s = l; /* the Cholesky factor is no longer needed once K is solved */
+    mca_mat_mul(s, h, u, m, n, m); /* H P H^T */
+    for (size_t i = 0; i < m * m; ++i) {
+        s[i] += c[i];
     }
+    mca_mat_mul(b, kk, s, n, m, m); /* K S (n x m) */
     for (size_t i = 0; i < n; ++i) {
-        a[i * n + i] += 1.0f;
+        for (size_t j = i; j < n; ++j) {
+            float acc = p[i * n + j];
+            for (size_t k = 0; k < m; ++k) {
+                acc += b[i * m + k] * kk[j * m + k] - kk[i * m + k] * u[j * m + k] - u[i * m + k] * kk[j * m + k];
+            }
+            pn[i * n + j] = acc;
+            pn[j * n + i] = acc;
+        }
     }
-    mca_mat_mul(b, a, p, n, n, n);
-    mca_mat_mul_bt(pn, b, a, n, n, n);
-    mca_mat_mul(t, kk, c, n, m, m); /* K R_eff into t (d no longer needed) */
-    mca_mat_mul_bt(b, t, kk, n, m, n);
-    for (size_t i = 0; i < n * n; ++i) {
-        pn[i] += b[i];
-    }
-    mca_mat_symmetrize(pn, n);
     if (!mca_all_finite(xn, n) || !mca_all_finite(pn, n * n)) {
         return MCA_ERR_NONFINITE;
     }
@@ -488,14 +496,15 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
         !mca_all_finite(p, n * n) || !mca_all_finite(h, m * n)) {
         return MCA_ERR_NONFINITE;
     }
-    /* Scratch layout (MCA_KF_WS_LEN(n, m) floats): a, b, pn (n x n); kk (n x m): P H^T, then
-     * K in place; t (n x m): C^-1 nu, then the per-row R increments d (m), then K R_eff;
-     * c, l (m x m); xn (n); y (m). Every m-vector fits in t (n >= 1). */
-    float *a = ws;
-    float *b = a + n * n;
-    float *pn = b + n * n;
+    /* Scratch layout (MCA_KF_WS_LEN(n, m) floats): pn (n x n); kk (n x m): P H^T, then K in
+     * place; a (n x m): U = P H^T for the Joseph step; b (n x m): K S; t (n x m): C^-1 nu,
+     * then the per-row R increments d (m); c, l (m x m); xn (n); y (m). Every m-vector fits
+     * in t (n >= 1). */
+    float *pn = ws;
     float *kk = pn + n * n;
-    float *t = kk + n * m;
+    float *a = kk + n * m;
+    float *b = a + n * m;
+    float *t = b + n * m;
     float *c = t + n * m;
     float *l = c + m * m;
     float *xn = l + m * m;

@@ -462,32 +462,39 @@ def test_static_alignment_recovers_tilt_and_gyro_bias() -> None:
     np.testing.assert_allclose(np.diag(nav.P), np.diag(att.initial_covariance(cfg.att)))
 
 
-def test_alignment_by_timeout_uses_zero_bias() -> None:
+def test_vibration_does_not_prevent_alignment_block_means_decide() -> None:
+    # a gyro spike every 0.25 s (motors, an engine): no single sample is still for long, but the
+    # block mean is, so the filter aligns after init_still_s with the block's mean gyro as bias
     cfg = replace(gnav.NavConfig(), gravity_mps2=G)
     nav = gnav.Nav(cfg)
     f_b = att.dcm_from_quat(att.quat_from_euler(0.1, 0.05, 0.0)).T @ np.array([0.0, 0.0, -G])
-    t = 0
-    for k in range(2000):  # a gyro spike every 0.25 s: never 1 s of still window
+    gyros = []
+    for k in range(2000):
         gyro = (0.5, 0.0, 0.0) if k % 50 == 25 else (0.01, 0.0, 0.0)
-        nav.imu(t, gyro, f_b)
-        t += 5000
+        nav.imu(k * 5000, gyro, f_b)
+        if k > 0:  # the first sample only anchors the time
+            gyros.append(gyro[0])
         if nav.aligned:
             break
-    assert nav.aligned and t - 5000 == 5_000_000  # init_timeout_s after the first sample
-    assert nav.b == (0.0, 0.0, 0.0)
+    assert nav.aligned and len(gyros) * 5000 == 1_000_000  # one block of init_still_s
+    assert nav.b[0] == pytest.approx(np.mean(gyros), rel=1e-12)
     np.testing.assert_allclose(att.euler_from_quat(nav.q)[:2], (0.1, 0.05), atol=1e-12)
 
 
-def test_alignment_by_timeout_with_empty_window_uses_the_last_sample() -> None:
-    nav = gnav.Nav(replace(gnav.NavConfig(), gravity_mps2=G))
-    f_rot = att.dcm_from_quat(att.quat_from_euler(-0.2, 0.1, 0.0)).T @ np.array([0.0, 0.0, -G])
-    f_lvl = np.array([0.0, 0.0, -G])
-    for k in range(1000):  # rotating the whole time: never still, the window stays empty
-        nav.imu(k * 5000, (0.3, 0.0, 0.0), f_lvl)
-        assert not nav.aligned
-    nav.imu(1000 * 5000, (0.3, 0.0, 0.0), f_rot)  # 5 s after the first sample
-    assert nav.aligned and nav.b == (0.0, 0.0, 0.0)
-    np.testing.assert_allclose(att.euler_from_quat(nav.q)[:2], (-0.2, 0.1), atol=1e-12)
+def test_alignment_by_timeout_uses_the_all_time_mean_zero_bias_and_a_wide_variance() -> None:
+    cfg = replace(gnav.NavConfig(), gravity_mps2=G)
+    nav = gnav.Nav(cfg)
+    f_a = att.dcm_from_quat(att.quat_from_euler(-0.2, 0.1, 0.0)).T @ np.array([0.0, 0.0, -G])
+    f_b = att.dcm_from_quat(att.quat_from_euler(0.2, 0.1, 0.0)).T @ np.array([0.0, 0.0, -G])
+    for k in range(1001):  # turning the whole time: no block is still
+        nav.imu(k * 5000, (0.3, 0.0, 0.0), f_a if k % 2 else f_b)
+        assert nav.aligned == (k == 1000)  # init_timeout_s after the first sample
+    assert nav.b == (0.0, 0.0, 0.0)
+    mean_f = (500 * f_a + 500 * f_b) / 1000  # the first sample only anchors the time
+    roll = math.atan2(-mean_f[1], -mean_f[2])
+    pitch = math.atan2(mean_f[0], math.hypot(mean_f[1], mean_f[2]))
+    np.testing.assert_allclose(att.euler_from_quat(nav.q)[:2], (roll, pitch), atol=1e-12)
+    assert nav.P[0, 0] == pytest.approx(25.0 * cfg.att.att0_var_rad2)
 
 
 # --------------------------------------------------------------------------------------

@@ -205,8 +205,9 @@ def test_ulog61_counts_rates_and_gnss_fields_match_readme(ulog61: Recording) -> 
     assert np.median(np.diff(ulog61.ref["t_us"])) * 1e-6 == pytest.approx(0.05, abs=0.002)  # README: 20 Hz
     assert ulog61.mag.size > 100 and np.median(np.diff(ulog61.mag["t_us"])) * 1e-6 < 0.6  # README: 2 Hz
     assert ulog61.meta["px4_ekf2_gps_delay_us"] == 110_000  # README: EKF2_GPS_DELAY 110 ms
-    # README: timestamp_sample of the GPS topic is 0 here, so the fix time is its publication time.
-    assert np.array_equal(gnss["t_us"], gnss["t_rx_us"])
+    # README: timestamp_sample of the GPS topic is 0 here, so the fix time is its publication time
+    # minus the latency the autopilot was configured with (the loader's default).
+    assert np.array_equal(gnss["t_us"], gnss["t_rx_us"] - 110_000)
 
 
 def test_ulog61_static_start_reads_minus_g_on_body_down(ulog61: Recording) -> None:
@@ -268,7 +269,9 @@ def test_ulog_esc_old_layout_counts_rates_and_fix(ulog_esc: Recording) -> None:
     assert gnss["num_sv"].min() >= 14 and gnss["num_sv"].max() <= 16  # README: 14-16 satellites
     assert 0.42 <= gnss["h_acc_m"].min() and gnss["h_acc_m"].max() <= 0.5  # README: eph 0.43-0.49
     assert np.median(np.diff(ulog_esc.ref["t_us"])) * 1e-3 == pytest.approx(32, abs=1)  # README: 31 Hz
-    assert "timestamp - 0 us" in ulog_esc.meta["gnss_time_source"]  # README: no timestamp_sample in v1.9
+    # README: no timestamp_sample in v1.9: publication time minus the logged EKF2_GPS_DELAY
+    delay = ulog_esc.meta["px4_ekf2_gps_delay_us"] or 0
+    assert f"timestamp - {delay} us" in ulog_esc.meta["gnss_time_source"]
     roll, pitch, _ = roll_pitch_yaw_deg(ulog_esc.ref["q_nb"])
     assert np.abs(roll).max() == pytest.approx(25.2, abs=0.2)  # README: max |roll| 25.2 deg
     assert np.abs(pitch).max() == pytest.approx(27.6, abs=0.2)  # README: max |pitch| 27.6 deg

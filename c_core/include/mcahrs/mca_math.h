@@ -67,6 +67,9 @@ float mca_quat_normalize(float q[4]);
 /** Unit quaternion of rotation vector rv (rad), exact (sin/cos), small-angle safe. */
 void mca_quat_from_rotvec(float q[4], const float rv_rad[3]);
 
+/** v_n = C_nb v_b without forming the matrix (two cross products). v_n may alias v_b. */
+void mca_quat_rotate(float v_n[3], const float q_nb[4], const float v_b[3]);
+
 /** Direction cosine matrix C_nb (row-major 3 x 3) of unit quaternion q_nb: v_n = C_nb v_b. */
 void mca_quat_to_dcm(float c_nb[9], const float q_nb[4]);
 

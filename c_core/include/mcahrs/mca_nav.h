@@ -114,7 +114,9 @@ typedef struct {
     uint8_t hist_sat;        /**< saturated sample in the entry being built */
     float init_f_sum[3];
     float init_w_sum[3];
-    uint32_t init_win_us;    /**< alignment window time, integer sum of dt_us */
+    uint32_t init_win_us;    /**< alignment block time, integer sum of dt_us */
+    float init_f_all[3];     /**< sum of f since the first sample (alignment by timeout) */
+    uint32_t init_n_all;
     uint32_t init_n;
     uint8_t init_still;      /**< every sample of the window was still */
     float g_mps2;

@@ -13,5 +13,6 @@
 #include "mca_att.h"
 #include "mca_nav.h"
 #include "mca_replay.h"
+#include "mca_ins.h"
 
 #endif /* MCAHRS_H */

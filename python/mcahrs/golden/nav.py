@@ -400,6 +400,8 @@ class Nav:
         self.win_w = [0.0, 0.0, 0.0]
         self.win_n = 0
         self.win_us = 0
+        self.all_f = [0.0, 0.0, 0.0]  # sum of f since the first sample (alignment by timeout)
+        self.all_n = 0
         # attitude
         self.q: att.Quat = (1.0, 0.0, 0.0, 0.0)
         self.b: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -468,39 +470,38 @@ class Nav:
             self._lost_gps_observation(t_us, w)
 
     def _align_step(self, t_us: int, dt_us: int, w: tuple, f: tuple) -> None:
-        """ALGORITHMS.md 8, IMU step 4."""
+        """ALGORITHMS.md 8, IMU step 4: still blocks judged on their means; all-time mean at timeout."""
         cfg = self.cfg
-        wn = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
-        fn = math.sqrt(f[0] ** 2 + f[1] ** 2 + f[2] ** 2)
-        still = wn <= cfg.init_gyro_still_rps and abs(fn - self.g) <= cfg.init_acc_still_mps2
-        if still:  # added to the window
-            for i in range(3):
-                self.win_f[i] += f[i]
-                self.win_w[i] += w[i]
-            self.win_n += 1
-            self.win_us += dt_us
-        else:  # empties the window and is not added; the timer keeps running
-            self.win_f = [0.0, 0.0, 0.0]
-            self.win_w = [0.0, 0.0, 0.0]
-            self.win_n = 0
-            self.win_us = 0
+        for i in range(3):
+            self.win_f[i] += f[i]
+            self.win_w[i] += w[i]
+            self.all_f[i] += f[i]
+        self.win_n += 1
+        self.all_n += 1
+        self.win_us += dt_us
         assert self.t_first_us is not None
-        if self.win_n > 0 and self.win_us >= self._init_still_us:
+        att_var = cfg.att.att0_var_rad2
+        if self.win_us >= self._init_still_us:
             n = self.win_n
-            f_mean = (self.win_f[0] / n, self.win_f[1] / n, self.win_f[2] / n)
-            b = (self.win_w[0] / n, self.win_w[1] / n, self.win_w[2] / n)
-        elif t_us - self.t_first_us >= self._init_timeout_us:
-            n = self.win_n
-            f_mean = (self.win_f[0] / n, self.win_f[1] / n, self.win_f[2] / n) if n > 0 else f
-            b = (0.0, 0.0, 0.0)
-        else:
-            return
+            f_mean = tuple(v / n for v in self.win_f)
+            w_mean = tuple(v / n for v in self.win_w)
+            still = (math.hypot(*w_mean) <= cfg.init_gyro_still_rps
+                     and abs(math.hypot(*f_mean) - self.g) <= cfg.init_acc_still_mps2)
+            if still:
+                self._align(t_us, f_mean, w_mean, att_var)
+                return
+            self.win_f, self.win_w, self.win_n, self.win_us = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 0, 0
+        if t_us - self.t_first_us >= self._init_timeout_us:
+            n = self.all_n
+            self._align(t_us, tuple(v / n for v in self.all_f), (0.0, 0.0, 0.0), 25.0 * att_var)
+
+    def _align(self, t_us: int, f_mean: tuple, b: tuple, att_var: float) -> None:
         fx, fy, fz = f_mean
         phi = math.atan2(-fy, -fz)
         theta = math.atan2(fx, math.sqrt(fy * fy + fz * fz))
         self.q = att.quat_from_euler(phi, theta, 0.0)
         self.b = b
-        self.P = att.initial_covariance(cfg.att)
+        self.P = att.initial_covariance(replace(self.cfg.att, att0_var_rad2=att_var))
         self.aligned = True
         self.t_grav_us = t_us  # the no-GPS observation timer starts at the aligning sample
 

@@ -254,13 +254,16 @@ def _load_ref(d: dict, source: str, meta: dict) -> np.ndarray:
     return out
 
 
-def load_ulog(path: str | Path, *, gps_topic: str | None = None, gps_delay_us: int = 0) -> Recording:
+def load_ulog(
+    path: str | Path, *, gps_topic: str | None = None, gps_delay_us: int | None = None
+) -> Recording:
     """Load a PX4 ULog file.
 
     ``gps_topic`` forces ``"vehicle_gps_position"`` or ``"sensor_gps"`` (default: the first of the
     two that the log has). ``gps_delay_us`` is subtracted from the publication ``timestamp`` to
-    get the fix validity time when the topic has no usable ``timestamp_sample`` (default 0: no
-    latency assumed; ``meta["px4_ekf2_gps_delay_us"]`` holds what the autopilot assumed).
+    get the fix validity time when the topic has no usable ``timestamp_sample``. Default: the
+    receiver latency the autopilot itself was configured with (``EKF2_GPS_DELAY``, recorded in
+    the log: a fact of the recording, not a tuning), else 0; ``meta["gps_delay_us_applied"]``.
     Raises :class:`LoaderError` when the file is unreadable or a required topic is missing.
     """
     from pyulog import ULog  # local import: pyulog is only needed for ULog files
@@ -287,6 +290,8 @@ def load_ulog(path: str | Path, *, gps_topic: str | None = None, gps_delay_us: i
     assert gps_topic is not None
 
     params = ulog.initial_parameters
+    if gps_delay_us is None:
+        gps_delay_us = int(round(float(params["EKF2_GPS_DELAY"]) * 1000)) if "EKF2_GPS_DELAY" in params else 0
     meta: dict = {
         "source": "ulog",
         "file": path.name,

@@ -1,0 +1,1070 @@
+/* Loosely-coupled INS (DESIGN.md 6, docs/ALGORITHMS.md 10). See mca_ins.h. */
+#include "mcahrs/mca_ins.h"
+
+#include <math.h>
+#include <string.h>
+
+#define NX MCA_INS_NX
+#define DEG 0.0174532925199433f
+#define G0 9.80665f
+#define OMEGA_E 7.292115e-5f   /* earth rotation rate, rad/s */
+#define WGS84_A 6378137.0f
+#define WGS84_E2 6.69437999014e-3f
+#define E7_TO_RAD 1.74532925199433e-9f
+#define GRAV_GRAD 3.086e-6f    /* -dg/dh of the normal gravity (ALGORITHMS.md 6), 1/s^2 */
+#define COS_FLOOR 0.01f        /* polar limit: cos L floored where it divides */
+#define LAT_MAX_E7 899000000   /* polar limit: |L| <= 89.9 deg */
+#define ALT_MIN_MM (-1000000)  /* section 6 range */
+#define ALT_MAX_MM 100000000
+#define MAG_MAX_TILT (80.0f * DEG)
+#define HALF_SPAN_US 3600000000LL /* 360 deg of longitude in 1e-7 deg */
+
+/* compile-time checks: the propagation needs three 15 x 15 matrices of the update's scratch,
+ * and a GNSS update has at most MCA_MEAS_MAX rows */
+typedef char mca_ins_ws_fits_predict[(MCA_INS_WS_LEN >= 3 * NX * NX) ? 1 : -1];
+typedef char mca_ins_rows_fit[(MCA_MEAS_MAX >= 6) ? 1 : -1];
+
+/* ------------------------------------------------------------------------ configuration */
+
+void mca_ins_config_default(mca_ins_config_t *c)
+{
+    memset(c, 0, sizeof(*c));
+    c->gyro_noise_rps = 3e-4f;
+    c->accel_noise_mps2 = 3e-3f;
+    c->gyro_bias_rw_rps2 = 2e-5f;
+    c->accel_bias_rw_mps3 = 2e-4f;
+    c->gyro_bias_tau_s = 1000.0f;
+    c->accel_bias_tau_s = 1000.0f;
+    c->att0_var_rad2 = (2.0f * DEG) * (2.0f * DEG);
+    c->yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
+    c->yaw0_rad = 0.0f;
+    c->gyro_bias0_var_rps2 = (0.5f * DEG) * (0.5f * DEG);
+    c->gyro_bias_still_var_rps2 = (0.05f * DEG) * (0.05f * DEG);
+    c->accel_bias0_var_mps4 = 0.1f * 0.1f;
+    c->vel0_var_m2ps2 = 1.0f;
+    c->cov_dt_s = 0.01f;
+    c->earth_rate = 1u;
+    c->transport_rate = 1u;
+    c->yaw_source = MCA_YAW_COG;
+    c->gravity_mps2 = 0.0f;
+    c->imu_dt_max_s = 0.1f;
+    c->init_still_s = 1.0f;
+    c->init_gyro_still_rps = 0.05f;
+    c->init_acc_still_mps2 = 0.5f;
+    c->init_timeout_s = 5.0f;
+    c->accel_sat_mps2 = 156.9f;
+    c->gps_timeout_s = 1.5f;
+    c->gps_pos_sigma_m = 2.5f;
+    c->gps_alt_sigma_m = 5.0f;
+    c->gps_vel_sigma_mps = 0.2f;
+    c->mag_declination_rad = 0.0f;
+    c->mag_yaw_sigma_rad = 0.05f;
+    c->mag_period_s = 0.1f;
+    c->cog_min_speed_mps = 3.0f;
+    c->cog_sigma0_rad = 0.05f;
+    mca_robust_config_default(&c->robust);
+}
+
+void mca_ins_config_fixedwing(mca_ins_config_t *c)
+{
+    mca_ins_config_default(c);
+    c->cog_min_speed_mps = 5.0f;
+}
+
+void mca_ins_config_multirotor(mca_ins_config_t *c)
+{
+    mca_ins_config_default(c);
+    c->yaw_source = MCA_YAW_MAG; /* a multirotor does not move along its nose */
+}
+
+static int pos(float v)
+{
+    return isfinite(v) && v > 0.0f;
+}
+
+static int nonneg(float v)
+{
+    return isfinite(v) && v >= 0.0f;
+}
+
+/* a Gauss-Markov time: 0 (random walk) or >= 1 s */
+static int tau_ok(float v)
+{
+    return isfinite(v) && (v >= 1.0f || (v >= 0.0f && v <= 0.0f));
+}
+
+mca_status_t mca_ins_config_check(const mca_ins_config_t *c)
+{
+    if (c == NULL) {
+        return MCA_ERR_NULL;
+    }
+    int ok = nonneg(c->gyro_noise_rps) && nonneg(c->accel_noise_mps2) && nonneg(c->gyro_bias_rw_rps2) &&
+             nonneg(c->accel_bias_rw_mps3) && tau_ok(c->gyro_bias_tau_s) && tau_ok(c->accel_bias_tau_s) &&
+             pos(c->att0_var_rad2) && pos(c->yaw0_var_rad2) && isfinite(c->yaw0_rad) &&
+             pos(c->gyro_bias0_var_rps2) && pos(c->gyro_bias_still_var_rps2) && pos(c->accel_bias0_var_mps4) && pos(c->vel0_var_m2ps2) &&
+             nonneg(c->cov_dt_s) && c->cov_dt_s <= 0.1f && c->earth_rate <= 1u && c->transport_rate <= 1u &&
+             c->yaw_source <= MCA_YAW_COG && nonneg(c->gravity_mps2) && pos(c->imu_dt_max_s) &&
+             pos(c->init_still_s) && nonneg(c->init_gyro_still_rps) && nonneg(c->init_acc_still_mps2) &&
+             pos(c->init_timeout_s) && pos(c->accel_sat_mps2) && pos(c->gps_timeout_s) &&
+             pos(c->gps_pos_sigma_m) && pos(c->gps_alt_sigma_m) && pos(c->gps_vel_sigma_mps) &&
+             isfinite(c->mag_declination_rad) && pos(c->mag_yaw_sigma_rad) && nonneg(c->mag_period_s) &&
+             nonneg(c->cog_min_speed_mps) && pos(c->cog_sigma0_rad) &&
+             mca_robust_config_check(&c->robust) == MCA_OK;
+    /* durations become uint32 microseconds (ALGORITHMS.md 8, Times): keep them far below 71 min */
+    ok = ok && c->imu_dt_max_s <= 10.0f && c->init_still_s <= 600.0f && c->init_timeout_s <= 600.0f &&
+         c->gps_timeout_s <= 600.0f && c->mag_period_s <= 600.0f;
+    for (size_t i = 0; i < 3u; ++i) {
+        ok = ok && isfinite(c->lever_arm_b_m[i]) && fabsf(c->lever_arm_b_m[i]) <= 10.0f;
+    }
+    return ok ? MCA_OK : MCA_ERR_BAD_CONFIG;
+}
+
+mca_status_t mca_ins_init(mca_ins_t *ins, const mca_ins_config_t *cfg)
+{
+    if (ins == NULL || cfg == NULL) {
+        return MCA_ERR_NULL;
+    }
+    const mca_status_t st = mca_ins_config_check(cfg);
+    if (st != MCA_OK) {
+        return st;
+    }
+    memset(ins, 0, sizeof(*ins));
+    ins->cfg = *cfg;
+    ins->q_nb[0] = 1.0f;
+    ins->last_gps_t = NAN; /* no update yet */
+    mca_robust_state_init(&ins->rs);
+    return MCA_OK;
+}
+
+/* ------------------------------------------------------------------------ small helpers */
+
+/* A configured duration in integer microseconds (ALGORITHMS.md 8, Times). */
+static uint32_t us(float s)
+{
+    return (uint32_t)(s * 1e6f + 0.5f);
+}
+
+/* Seconds from a to b (b >= a), saturating at 71 minutes (uint32 us). */
+static float span_s(uint64_t a, uint64_t b)
+{
+    const uint64_t d = b - a;
+    return (float)(d > (uint64_t)UINT32_MAX ? UINT32_MAX : (uint32_t)d) * 1e-6f;
+}
+
+static float norm3(const float v[3])
+{
+    return sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
+
+static void cross3(float c[3], const float a[3], const float b[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static void mat3_vec(float y[3], const float m[9], const float x[3])
+{
+    for (size_t i = 0; i < 3u; ++i) {
+        y[i] = m[i * 3u] * x[0] + m[i * 3u + 1u] * x[1] + m[i * 3u + 2u] * x[2];
+    }
+}
+
+/* s * [a x] into the 3 x 3 block of the NX x NX matrix m at (r0, c0). */
+static void put_skew(float *m, size_t r0, size_t c0, const float a[3], float s)
+{
+    float *b = &m[r0 * NX + c0];
+    b[0] = 0.0f;
+    b[1] = -s * a[2];
+    b[2] = s * a[1];
+    b[NX] = s * a[2];
+    b[NX + 1u] = 0.0f;
+    b[NX + 2u] = -s * a[0];
+    b[2u * NX] = -s * a[1];
+    b[2u * NX + 1u] = s * a[0];
+    b[2u * NX + 2u] = 0.0f;
+}
+
+/* s * M (3 x 3 row-major) into the block at (r0, c0). */
+static void put_mat3(float *m, size_t r0, size_t c0, const float a[9], float s)
+{
+    for (size_t i = 0; i < 3u; ++i) {
+        for (size_t j = 0; j < 3u; ++j) {
+            m[(r0 + i) * NX + c0 + j] = s * a[i * 3u + j];
+        }
+    }
+}
+
+/* q = p (x) q, normalised (p applied on the left: a navigation-frame rotation). */
+static void quat_left(float q[4], const float p[4])
+{
+    float r[4];
+    mca_quat_mul(r, p, q);
+    mca_quat_normalize(r);
+    memcpy(q, r, sizeof(r));
+}
+
+static float yaw_of(const float q[4])
+{
+    float e[3];
+    mca_quat_to_euler(e, q);
+    return e[2];
+}
+
+/* ------------------------------------------------------------------------ geodesy of the position */
+
+/* Latitude, height and the quantities derived from them (ALGORITHMS.md 10, step 1). */
+typedef struct {
+    float s, c;     /**< sin L, cos L floored at COS_FLOOR */
+    float tan_l;    /**< s / c */
+    float h;        /**< ellipsoidal height, m */
+    float rm_h;     /**< R_M + h */
+    float rn_h;     /**< R_N + h */
+    float root;     /**< sqrt(1 - e2 s^2) */
+} ins_frame_t;
+
+static void frame_of(const mca_ins_t *ins, ins_frame_t *fr)
+{
+    /* latitude in rad from 1e-7 deg, split so the float product keeps its precision */
+    const int32_t whole = ins->lat_e7 / 10000000;
+    const int32_t frac = ins->lat_e7 - whole * 10000000;
+    const float lat = (float)whole * DEG + (float)frac * E7_TO_RAD;
+    float s, c;
+    mca_sincosf(lat, &s, &c);
+    fr->s = s;
+    fr->c = c < COS_FLOOR ? COS_FLOOR : c;
+    fr->tan_l = s / fr->c;
+    fr->h = (float)ins->alt_mm * 1e-3f - ins->off_ned_m[2];
+    fr->root = sqrtf(1.0f - WGS84_E2 * s * s);
+    const float rn = WGS84_A / fr->root;
+    fr->rn_h = rn + fr->h;
+    fr->rm_h = rn * (1.0f - WGS84_E2) / (fr->root * fr->root) + fr->h;
+}
+
+static float gravity_of(const mca_ins_t *ins, const ins_frame_t *fr)
+{
+    if (ins->cfg.gravity_mps2 > 0.0f) {
+        return ins->cfg.gravity_mps2;
+    }
+    /* ALGORITHMS.md 6, Somigliana with the free-air term */
+    return 9.7803253359f * (1.0f + 0.00193185265241f * fr->s * fr->s) / fr->root - GRAV_GRAD * fr->h;
+}
+
+/* Earth rate and transport rate in NED (0 where switched off). */
+static void rates_of(const mca_ins_t *ins, const ins_frame_t *fr, float w_ie[3], float w_en[3])
+{
+    memset(w_ie, 0, 3u * sizeof(float));
+    memset(w_en, 0, 3u * sizeof(float));
+    if (ins->cfg.earth_rate) {
+        w_ie[0] = OMEGA_E * fr->c;
+        w_ie[2] = -OMEGA_E * fr->s;
+    }
+    if (ins->cfg.transport_rate) {
+        const float *v = ins->vel_ned_mps;
+        w_en[0] = v[1] / fr->rn_h;
+        w_en[1] = -v[0] / fr->rm_h;
+        w_en[2] = -v[1] * fr->tan_l / fr->rn_h;
+    }
+}
+
+/* round(x) as int64 with |x| clamped to 1e9 (an absurd offset cannot overflow anything). */
+static int64_t round_counts(float x)
+{
+    const float lim = 1e9f;
+    x = x > lim ? lim : (x < -lim ? -lim : x);
+    return (int64_t)(x >= 0.0f ? x + 0.5f : x - 0.5f);
+}
+
+/* Fold the metre offsets into the integer position (ALGORITHMS.md 10, Position in float32), with
+ * the radii of fr. Keeps |off| below about one count; applies the polar and height clamps. */
+static void fold(mca_ins_t *ins, const ins_frame_t *fr)
+{
+    const float m_lat = fr->rm_h * E7_TO_RAD;
+    const float m_lon = fr->rn_h * fr->c * E7_TO_RAD;
+    const int64_t kn = round_counts(ins->off_ned_m[0] / m_lat);
+    const int64_t ke = round_counts(ins->off_ned_m[1] / m_lon);
+    const int64_t kd = round_counts(ins->off_ned_m[2] * 1000.0f);
+    ins->off_ned_m[0] -= (float)(int32_t)kn * m_lat;
+    ins->off_ned_m[1] -= (float)(int32_t)ke * m_lon;
+    ins->off_ned_m[2] -= (float)(int32_t)kd * 1e-3f;
+    int64_t lat = (int64_t)ins->lat_e7 + kn;
+    if (lat > LAT_MAX_E7 || lat < -LAT_MAX_E7) {
+        lat = lat > 0 ? LAT_MAX_E7 : -LAT_MAX_E7;
+        ins->off_ned_m[0] = 0.0f;
+    }
+    /* longitude into [-180, 180) deg: one modulo, no loop */
+    int64_t lon = ((int64_t)ins->lon_e7 + ke + HALF_SPAN_US / 2) % HALF_SPAN_US;
+    lon = (lon < 0 ? lon + HALF_SPAN_US : lon) - HALF_SPAN_US / 2;
+    int64_t alt = (int64_t)ins->alt_mm - kd;
+    if (alt > ALT_MAX_MM || alt < ALT_MIN_MM) {
+        alt = alt > 0 ? ALT_MAX_MM : ALT_MIN_MM;
+        ins->off_ned_m[2] = 0.0f;
+    }
+    ins->lat_e7 = (int32_t)lat;
+    ins->lon_e7 = (int32_t)lon;
+    ins->alt_mm = (int32_t)alt;
+}
+
+/* Home NED of the current position (section 6 of the integers plus the offsets). */
+static void pos_home_ned(const mca_ins_t *ins, float r[3])
+{
+    if (mca_geo_to_ned(&ins->home, ins->lat_e7, ins->lon_e7, ins->alt_mm, r) != MCA_OK) {
+        memset(r, 0, 3u * sizeof(float)); /* unreachable: fold keeps the position in range */
+    }
+    for (size_t i = 0; i < 3u; ++i) {
+        r[i] += ins->off_ned_m[i];
+    }
+}
+
+/* ------------------------------------------------------------------------ covariance */
+
+/* Yaw frozen until the first yaw observation (ALGORITHMS.md 10, Yaw). */
+static void yaw_decouple(mca_ins_t *ins)
+{
+    if (ins->yaw_aligned) {
+        return;
+    }
+    for (size_t i = 0; i < NX; ++i) {
+        ins->p[i * NX + MCA_INS_PHI + 2u] = 0.0f;
+        ins->p[(MCA_INS_PHI + 2u) * NX + i] = 0.0f;
+    }
+    ins->p[(MCA_INS_PHI + 2u) * (NX + 1u)] = ins->cfg.yaw0_var_rad2;
+}
+
+static void error_model(const mca_ins_t *ins, const float f_n[3], float *f)
+{
+    ins_frame_t fr;
+    frame_of(ins, &fr);
+    float w_ie[3], w_en[3];
+    rates_of(ins, &fr, w_ie, w_en);
+    const float w_cor[3] = {2.0f * w_ie[0] + w_en[0], 2.0f * w_ie[1] + w_en[1], 2.0f * w_ie[2] + w_en[2]};
+    const float w_in[3] = {w_ie[0] + w_en[0], w_ie[1] + w_en[1], w_ie[2] + w_en[2]};
+    float c[9];
+    mca_quat_to_dcm(c, ins->q_nb);
+    memset(f, 0, NX * NX * sizeof(float));
+    for (size_t i = 0; i < 3u; ++i) {
+        f[(MCA_INS_DR + i) * NX + MCA_INS_DV + i] = 1.0f;
+    }
+    if (!(ins->cfg.gravity_mps2 > 0.0f)) {
+        f[(MCA_INS_DV + 2u) * NX + MCA_INS_DR + 2u] = GRAV_GRAD;
+    }
+    put_skew(f, MCA_INS_DV, MCA_INS_DV, w_cor, -1.0f);
+    put_skew(f, MCA_INS_DV, MCA_INS_PHI, f_n, -1.0f);
+    put_mat3(f, MCA_INS_DV, MCA_INS_BA, c, -1.0f);
+    if (ins->cfg.transport_rate) {
+        f[(MCA_INS_PHI + 0u) * NX + MCA_INS_DV + 1u] = -1.0f / fr.rn_h;
+        f[(MCA_INS_PHI + 1u) * NX + MCA_INS_DV + 0u] = 1.0f / fr.rm_h;
+        f[(MCA_INS_PHI + 2u) * NX + MCA_INS_DV + 1u] = fr.tan_l / fr.rn_h;
+    }
+    put_skew(f, MCA_INS_PHI, MCA_INS_PHI, w_in, -1.0f);
+    put_mat3(f, MCA_INS_PHI, MCA_INS_BG, c, -1.0f);
+    const float tg = ins->cfg.gyro_bias_tau_s, ta = ins->cfg.accel_bias_tau_s;
+    for (size_t i = 0; i < 3u; ++i) {
+        f[(MCA_INS_BG + i) * (NX + 1u)] = tg > 0.0f ? -1.0f / tg : 0.0f;
+        f[(MCA_INS_BA + i) * (NX + 1u)] = ta > 0.0f ? -1.0f / ta : 0.0f;
+    }
+}
+
+mca_status_t mca_ins_error_model(const mca_ins_t *ins, const float f_n[3], float *f_out)
+{
+    if (ins == NULL || f_n == NULL || f_out == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!mca_all_finite(f_n, 3u)) {
+        return MCA_ERR_NONFINITE;
+    }
+    error_model(ins, f_n, f_out);
+    return MCA_OK;
+}
+
+/* P = Phi P Phi^T + Qd over t_s with the NED specific force f_n (ALGORITHMS.md 10, Discretisation).
+ * Scratch: ws[0..225) A = F T, ws[225..450) Phi, ws[450..675) Phi P. */
+static void cov_propagate(mca_ins_t *ins, float t_s, const float f_n[3])
+{
+    float *a = ins->ws, *phi = ins->ws + NX * NX, *tmp = ins->ws + 2u * NX * NX;
+    error_model(ins, f_n, a);
+    for (size_t i = 0; i < NX * NX; ++i) {
+        a[i] *= t_s;
+    }
+    mca_mat_mul(phi, a, a, NX, NX, NX); /* (F T)^2 */
+    for (size_t i = 0; i < NX * NX; ++i) {
+        phi[i] = a[i] + 0.5f * phi[i];
+    }
+    for (size_t i = 0; i < NX; ++i) {
+        phi[i * (NX + 1u)] += 1.0f;
+    }
+    mca_mat_mul(tmp, phi, ins->p, NX, NX, NX);
+    mca_mat_mul_bt(ins->p, tmp, phi, NX, NX, NX);
+    /* Qd = Qc T + (F Qc + Qc F^T) T^2 / 2 with Qc diagonal: (A_ij qc_j + qc_i A_ji) T / 2 */
+    const mca_ins_config_t *c = &ins->cfg;
+    const float s = ins->rs.q_scale; /* AKF (1 in the other modes) */
+    float qc[NX];
+    for (size_t i = 0; i < 3u; ++i) {
+        qc[MCA_INS_DR + i] = 0.0f;
+        qc[MCA_INS_DV + i] = s * c->accel_noise_mps2 * c->accel_noise_mps2;
+        qc[MCA_INS_PHI + i] = s * c->gyro_noise_rps * c->gyro_noise_rps;
+        qc[MCA_INS_BG + i] = s * c->gyro_bias_rw_rps2 * c->gyro_bias_rw_rps2;
+        qc[MCA_INS_BA + i] = s * c->accel_bias_rw_mps3 * c->accel_bias_rw_mps3;
+    }
+    for (size_t i = 0; i < NX; ++i) {
+        for (size_t j = 0; j < NX; ++j) {
+            float q = 0.5f * t_s * (a[i * NX + j] * qc[j] + qc[i] * a[j * NX + i]);
+            if (i == j) {
+                q += qc[i] * t_s;
+            }
+            ins->p[i * NX + j] += q;
+        }
+    }
+    mca_mat_symmetrize(ins->p, NX);
+    yaw_decouple(ins);
+}
+
+/* ------------------------------------------------------------------------ history */
+
+static void hist_push(mca_ins_t *ins)
+{
+    mca_ins_hist_t *e = &ins->hist[ins->hist_head];
+    e->t_us = (uint32_t)ins->t_imu_us;
+    pos_home_ned(ins, e->pos_ned_m);
+    memcpy(e->vel_ned_mps, ins->vel_ned_mps, sizeof(e->vel_ned_mps));
+    memcpy(e->q_nb, ins->q_nb, sizeof(e->q_nb));
+    memcpy(e->w_b_rps, ins->w_last_rps, sizeof(e->w_b_rps));
+    ins->t_hist_newest_us = ins->t_imu_us;
+    ins->hist_head = (uint16_t)((ins->hist_head + 1u) % MCA_INS_HIST_LEN);
+    if (ins->hist_count < MCA_INS_HIST_LEN) {
+        ins->hist_count++;
+    }
+}
+
+/* The INS solution at one time. */
+typedef struct {
+    float r[3], v[3], q[4], w[3];
+} ins_sol_t;
+
+/* IMU time of history entry k (ring index): entries span under MCA_INS_HIST_LEN intervals, so
+ * the low 32 bits relative to the newest entry's full time are exact. */
+static uint64_t hist_time(const mca_ins_t *ins, uint16_t k)
+{
+    const uint16_t newest = (uint16_t)((ins->hist_head + MCA_INS_HIST_LEN - 1u) % MCA_INS_HIST_LEN);
+    return ins->t_hist_newest_us - (uint64_t)(uint32_t)(ins->hist[newest].t_us - ins->hist[k].t_us);
+}
+
+/* ALGORITHMS.md 10, The INS solution at t_fix. Returns 0 on a history miss. */
+static int solution_at(const mca_ins_t *ins, uint64_t t, ins_sol_t *s)
+{
+    ins_sol_t cur;
+    pos_home_ned(ins, cur.r);
+    memcpy(cur.v, ins->vel_ned_mps, sizeof(cur.v));
+    memcpy(cur.q, ins->q_nb, sizeof(cur.q));
+    memcpy(cur.w, ins->w_last_rps, sizeof(cur.w));
+    if (t >= ins->t_imu_us) {
+        *s = cur;
+        return 1;
+    }
+    if (ins->hist_count == 0u) {
+        return 0;
+    }
+    const uint16_t oldest = (uint16_t)((ins->hist_head + MCA_INS_HIST_LEN - ins->hist_count) % MCA_INS_HIST_LEN);
+    if (t < hist_time(ins, oldest)) {
+        return 0;
+    }
+    for (uint16_t k = 0; k < ins->hist_count; ++k) { /* oldest to newest, then the current state */
+        const uint16_t ia = (uint16_t)((oldest + k) % MCA_INS_HIST_LEN);
+        const int last = k + 1u == ins->hist_count;
+        const uint16_t ib = (uint16_t)((oldest + k + 1u) % MCA_INS_HIST_LEN);
+        const mca_ins_hist_t *a = &ins->hist[ia];
+        const uint64_t ta = hist_time(ins, ia);
+        const uint64_t tb = last ? ins->t_imu_us : hist_time(ins, ib);
+        if (t < ta || t >= tb) {
+            continue;
+        }
+        const float *vb = last ? cur.v : ins->hist[ib].vel_ned_mps;
+        const float d = span_s(ta, t);
+        const float tab = span_s(ta, tb);
+        for (size_t i = 0; i < 3u; ++i) {
+            const float dvel = vb[i] - a->vel_ned_mps[i];
+            s->v[i] = a->vel_ned_mps[i] + dvel * (d / tab);
+            s->r[i] = a->pos_ned_m[i] + a->vel_ned_mps[i] * d + dvel * d * d / (2.0f * tab);
+        }
+        const int use_b = t - ta > tb - t; /* the nearer point, ties: a */
+        memcpy(s->q, use_b ? (last ? cur.q : ins->hist[ib].q_nb) : a->q_nb, sizeof(s->q));
+        memcpy(s->w, use_b ? (last ? cur.w : ins->hist[ib].w_b_rps) : a->w_b_rps, sizeof(s->w));
+        return 1;
+    }
+    return 0; /* unreachable: t lies between the oldest entry and the current time */
+}
+
+/* ------------------------------------------------------------------------ corrections */
+
+/* Turn the attitude (and the history's) about NED down by dpsi; P row/column 8 (ALGORITHMS.md 10). */
+static void yaw_turn(mca_ins_t *ins, float dpsi, float var)
+{
+    float s, c;
+    mca_sincosf(0.5f * dpsi, &s, &c);
+    const float qz[4] = {c, 0.0f, 0.0f, s};
+    quat_left(ins->q_nb, qz);
+    for (uint16_t k = 0; k < ins->hist_count; ++k) {
+        quat_left(ins->hist[k].q_nb, qz);
+    }
+    if (ins->nav) {
+        for (size_t i = 0; i < NX; ++i) {
+            ins->p[i * NX + MCA_INS_PHI + 2u] = 0.0f;
+            ins->p[(MCA_INS_PHI + 2u) * NX + i] = 0.0f;
+        }
+        ins->p[(MCA_INS_PHI + 2u) * (NX + 1u)] = var;
+    }
+    ins->yaw_aligned = 1u;
+    ins->yaw_var_align = var;
+}
+
+/* Apply the error-state estimate dx to the state and every history entry (ALGORITHMS.md 10). */
+static void correct(mca_ins_t *ins, float dx[NX])
+{
+    if (!ins->yaw_aligned) {
+        dx[MCA_INS_PHI + 2u] = 0.0f;
+        yaw_decouple(ins);
+    }
+    ins_frame_t fr;
+    frame_of(ins, &fr);
+    float dq[4];
+    mca_quat_from_rotvec(dq, &dx[MCA_INS_PHI]);
+    for (size_t i = 0; i < 3u; ++i) {
+        ins->off_ned_m[i] += dx[MCA_INS_DR + i];
+        ins->vel_ned_mps[i] += dx[MCA_INS_DV + i];
+        ins->bg_rps[i] += dx[MCA_INS_BG + i];
+        ins->ba_mps2[i] += dx[MCA_INS_BA + i];
+    }
+    fold(ins, &fr);
+    quat_left(ins->q_nb, dq);
+    for (uint16_t k = 0; k < ins->hist_count; ++k) {
+        mca_ins_hist_t *e = &ins->hist[k];
+        for (size_t i = 0; i < 3u; ++i) {
+            e->pos_ned_m[i] += dx[MCA_INS_DR + i];
+            e->vel_ned_mps[i] += dx[MCA_INS_DV + i];
+        }
+        quat_left(e->q_nb, dq);
+    }
+}
+
+/* ------------------------------------------------------------------------ IMU */
+
+static float g_still(const mca_ins_t *ins)
+{
+    if (ins->cfg.gravity_mps2 > 0.0f) {
+        return ins->cfg.gravity_mps2;
+    }
+    return ins->home_set ? ins->g_align_mps2 : G0;
+}
+
+static void align(mca_ins_t *ins, const float f_mean[3], const float bias[3], int still)
+{
+    ins->bg0_var = still ? ins->cfg.gyro_bias_still_var_rps2 : ins->cfg.gyro_bias0_var_rps2;
+    const float eul[3] = {atan2f(-f_mean[1], -f_mean[2]),
+                          atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])),
+                          ins->cfg.yaw0_rad};
+    mca_quat_from_euler(ins->q_nb, eul);
+    memcpy(ins->bg_rps, bias, sizeof(ins->bg_rps));
+    memset(ins->ba_mps2, 0, sizeof(ins->ba_mps2));
+    ins->aligned = 1u;
+    ins->yaw_aligned = ins->cfg.yaw_source == MCA_YAW_NONE ? 1u : 0u;
+    ins->yaw_var_align = ins->cfg.yaw0_var_rad2;
+}
+
+/* ALGORITHMS.md 8, IMU step 4 (the INS uses the same rule). */
+static void accumulate_alignment(mca_ins_t *ins, const float w[3], const float f[3], uint32_t dt_us)
+{
+    const int still =
+        norm3(w) <= ins->cfg.init_gyro_still_rps && fabsf(norm3(f) - g_still(ins)) <= ins->cfg.init_acc_still_mps2;
+    if (still) {
+        for (size_t i = 0; i < 3u; ++i) {
+            ins->init_f_sum[i] += f[i];
+            ins->init_w_sum[i] += w[i];
+        }
+        ins->init_n++;
+        ins->init_win_us += dt_us;
+    } else {
+        memset(ins->init_f_sum, 0, sizeof(ins->init_f_sum));
+        memset(ins->init_w_sum, 0, sizeof(ins->init_w_sum));
+        ins->init_n = 0u;
+        ins->init_win_us = 0u;
+    }
+    const float zero[3] = {0.0f, 0.0f, 0.0f};
+    if (ins->init_n > 0u && ins->init_win_us >= us(ins->cfg.init_still_s)) {
+        const float inv = 1.0f / (float)ins->init_n;
+        const float fm[3] = {ins->init_f_sum[0] * inv, ins->init_f_sum[1] * inv, ins->init_f_sum[2] * inv};
+        const float wm[3] = {ins->init_w_sum[0] * inv, ins->init_w_sum[1] * inv, ins->init_w_sum[2] * inv};
+        align(ins, fm, wm, 1);
+    } else if (ins->t_imu_us - ins->t_first_us >= us(ins->cfg.init_timeout_s)) {
+        if (ins->init_n > 0u) {
+            const float inv = 1.0f / (float)ins->init_n;
+            const float fm[3] = {ins->init_f_sum[0] * inv, ins->init_f_sum[1] * inv, ins->init_f_sum[2] * inv};
+            align(ins, fm, zero, 0);
+        } else {
+            align(ins, f, zero, 0);
+        }
+    }
+}
+
+/* ALGORITHMS.md 10, Mechanization steps 1-8. */
+static void mechanize(mca_ins_t *ins, const float w_m[3], const float f_m[3], float dt, uint32_t dt_us)
+{
+    ins_frame_t fr;
+    frame_of(ins, &fr);
+    float w_ie[3], w_en[3];
+    rates_of(ins, &fr, w_ie, w_en);
+    const float g = gravity_of(ins, &fr);
+    float dth[3], du[3], cr[3], u2[3], c[9], dvf[3], cor[3];
+    for (size_t i = 0; i < 3u; ++i) {
+        dth[i] = (w_m[i] - ins->bg_rps[i]) * dt;
+        du[i] = (f_m[i] - ins->ba_mps2[i]) * dt;
+    }
+    cross3(cr, dth, du);
+    for (size_t i = 0; i < 3u; ++i) {
+        u2[i] = du[i] + 0.5f * cr[i];
+    }
+    mca_quat_to_dcm(c, ins->q_nb);
+    mat3_vec(dvf, c, u2);
+    const float w_cor[3] = {2.0f * w_ie[0] + w_en[0], 2.0f * w_ie[1] + w_en[1], 2.0f * w_ie[2] + w_en[2]};
+    cross3(cor, w_cor, ins->vel_ned_mps);
+    const float gn[3] = {0.0f, 0.0f, g};
+    for (size_t i = 0; i < 3u; ++i) {
+        const float v0 = ins->vel_ned_mps[i];
+        const float v1 = v0 + dvf[i] + (gn[i] - cor[i]) * dt;
+        ins->off_ned_m[i] += 0.5f * (v0 + v1) * dt;
+        ins->vel_ned_mps[i] = v1;
+    }
+    fold(ins, &fr);
+    /* q+ = exp(-w_in dt) (x) q (x) exp(dtheta) */
+    const float rv_n[3] = {-(w_ie[0] + w_en[0]) * dt, -(w_ie[1] + w_en[1]) * dt, -(w_ie[2] + w_en[2]) * dt};
+    float qb[4], qn[4], q1[4], q2[4];
+    mca_quat_from_rotvec(qb, dth);
+    mca_quat_from_rotvec(qn, rv_n);
+    mca_quat_mul(q1, ins->q_nb, qb);
+    mca_quat_mul(q2, qn, q1);
+    mca_quat_normalize(q2);
+    memcpy(ins->q_nb, q2, sizeof(q2));
+    for (size_t i = 0; i < 3u; ++i) {
+        ins->w_last_rps[i] = w_m[i] - ins->bg_rps[i];
+        ins->cov_dv_n[i] += dvf[i];
+    }
+    ins->cov_acc_us += dt_us;
+    if (ins->cov_acc_us >= us(ins->cfg.cov_dt_s)) {
+        const float t = (float)ins->cov_acc_us * 1e-6f;
+        const float f_n[3] = {ins->cov_dv_n[0] / t, ins->cov_dv_n[1] / t, ins->cov_dv_n[2] / t};
+        cov_propagate(ins, t, f_n);
+        memset(ins->cov_dv_n, 0, sizeof(ins->cov_dv_n));
+        ins->cov_acc_us = 0u;
+    }
+    ins->hist_acc_us += dt_us;
+    if (ins->hist_acc_us >= (uint32_t)MCA_INS_HIST_DT_US) {
+        hist_push(ins);
+        ins->hist_acc_us = 0u;
+    }
+}
+
+mca_status_t mca_ins_imu(mca_ins_t *ins, uint64_t t_us, const float w[3], const float f[3])
+{
+    if (ins == NULL || w == NULL || f == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!mca_all_finite(w, 3u) || !mca_all_finite(f, 3u)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (!ins->have_imu) {
+        ins->have_imu = 1u;
+        ins->t_imu_us = t_us;
+        ins->t_first_us = t_us;
+        return MCA_OK;
+    }
+    if (t_us <= ins->t_imu_us) {
+        return MCA_ERR_TIME_BACKWARDS;
+    }
+    const uint64_t dt64 = t_us - ins->t_imu_us;
+    ins->t_imu_us = t_us;
+    if (dt64 > us(ins->cfg.imu_dt_max_s)) {
+        ins->nav = 0u; /* re-anchored; position and velocity unknown after the gap: the next fix restarts */
+        return MCA_ERR_BAD_DT;
+    }
+    const uint32_t dt_us = (uint32_t)dt64;
+    const float dt = (float)dt_us * 1e-6f;
+    const float sat = ins->cfg.accel_sat_mps2;
+    if (fabsf(f[0]) >= sat || fabsf(f[1]) >= sat || fabsf(f[2]) >= sat) {
+        ins->flags |= MCA_INS_FLAG_SATURATED;
+    }
+    if (!ins->aligned) {
+        accumulate_alignment(ins, w, f, dt_us);
+        return MCA_OK;
+    }
+    if (!ins->nav) {
+        /* attitude only until the first usable fix (no position: no earth or transport rate) */
+        float rv[3], dq[4], qn[4];
+        for (size_t i = 0; i < 3u; ++i) {
+            ins->w_last_rps[i] = w[i] - ins->bg_rps[i];
+            rv[i] = ins->w_last_rps[i] * dt;
+        }
+        mca_quat_from_rotvec(dq, rv);
+        mca_quat_mul(qn, ins->q_nb, dq);
+        mca_quat_normalize(qn);
+        memcpy(ins->q_nb, qn, sizeof(qn));
+        return MCA_OK;
+    }
+    mechanize(ins, w, f, dt, dt_us);
+    return MCA_OK;
+}
+
+mca_status_t mca_ins_imu_delta(mca_ins_t *ins, uint64_t t_us, const float dth[3], const float dv[3])
+{
+    if (ins == NULL || dth == NULL || dv == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (ins->have_imu && t_us > ins->t_imu_us && t_us - ins->t_imu_us <= us(ins->cfg.imu_dt_max_s) &&
+        mca_all_finite(dth, 3u) && mca_all_finite(dv, 3u)) {
+        const float dt = (float)(uint32_t)(t_us - ins->t_imu_us) * 1e-6f;
+        const float w[3] = {dth[0] / dt, dth[1] / dt, dth[2] / dt};
+        const float f[3] = {dv[0] / dt, dv[1] / dt, dv[2] / dt};
+        return mca_ins_imu(ins, t_us, w, f);
+    }
+    return mca_ins_imu(ins, t_us, dth, dv); /* first sample or an error: the values are not used */
+}
+
+/* ------------------------------------------------------------------------ GNSS */
+
+static float sigma_or(float s, float dflt)
+{
+    return (isfinite(s) && s > 0.0f) ? s : dflt;
+}
+
+/* Start of navigation (ALGORITHMS.md 10, Initial alignment). */
+static void start_nav(mca_ins_t *ins, const mca_gps_fix_t *fix, const float vel[3], uint8_t vmask, float h_acc,
+                      float v_acc, float s_acc)
+{
+    const int has_alt = (fix->flags & MCA_FIX_ALT) != 0u;
+    ins->lat_e7 = fix->lat_e7;
+    ins->lon_e7 = fix->lon_e7;
+    ins->alt_mm = has_alt ? fix->alt_mm : ins->home.alt_mm;
+    memset(ins->off_ned_m, 0, sizeof(ins->off_ned_m));
+    memcpy(ins->vel_ned_mps, vel, 3u * sizeof(float));
+    if (ins->t_imu_us > fix->t_us) {
+        const float d = span_s(fix->t_us, ins->t_imu_us);
+        ins_frame_t fr;
+        frame_of(ins, &fr);
+        for (size_t i = 0; i < 3u; ++i) {
+            ins->off_ned_m[i] = vel[i] * d;
+        }
+        fold(ins, &fr);
+    }
+    memset(ins->p, 0, sizeof(ins->p));
+    const mca_ins_config_t *c = &ins->cfg;
+    const float d[NX] = {h_acc * h_acc,
+                         h_acc * h_acc,
+                         v_acc * v_acc,
+                         (vmask & 1u) ? s_acc * s_acc : c->vel0_var_m2ps2,
+                         (vmask & 2u) ? s_acc * s_acc : c->vel0_var_m2ps2,
+                         (vmask & 4u) ? s_acc * s_acc : c->vel0_var_m2ps2,
+                         c->att0_var_rad2,
+                         c->att0_var_rad2,
+                         ins->yaw_aligned ? ins->yaw_var_align : c->yaw0_var_rad2,
+                         ins->bg0_var,
+                         ins->bg0_var,
+                         ins->bg0_var,
+                         c->accel_bias0_var_mps4,
+                         c->accel_bias0_var_mps4,
+                         c->accel_bias0_var_mps4};
+    for (size_t i = 0; i < NX; ++i) {
+        ins->p[i * (NX + 1u)] = d[i];
+    }
+    memset(ins->cov_dv_n, 0, sizeof(ins->cov_dv_n));
+    ins->cov_acc_us = 0u;
+    ins->hist_acc_us = 0u;
+    ins->hist_head = 0u;
+    ins->hist_count = 0u;
+    ins->nav = 1u;
+}
+
+/* Course-over-ground yaw alignment when due (ALGORITHMS.md 10, Yaw); q_fix is turned too. */
+static void cog_align(mca_ins_t *ins, const float vel[3], int has_vne, float s_acc, float q_fix[4])
+{
+    if (ins->cfg.yaw_source != MCA_YAW_COG || ins->yaw_aligned || !has_vne) {
+        return;
+    }
+    const float speed = sqrtf(vel[0] * vel[0] + vel[1] * vel[1]);
+    if (!(speed > 0.0f) || speed < ins->cfg.cog_min_speed_mps) {
+        return;
+    }
+    const float dpsi = mca_wrap_pi(atan2f(vel[1], vel[0]) - yaw_of(q_fix));
+    const float var = ins->cfg.cog_sigma0_rad * ins->cfg.cog_sigma0_rad + (s_acc / speed) * (s_acc / speed);
+    yaw_turn(ins, dpsi, var);
+    float s, c;
+    mca_sincosf(0.5f * dpsi, &s, &c);
+    const float qz[4] = {c, 0.0f, 0.0f, s};
+    quat_left(q_fix, qz);
+}
+
+/* Rows, innovation and noise of one fix (ALGORITHMS.md 10, GNSS update steps 3-4) into the
+ * update scratch of the state. Returns the number of rows. */
+static size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s, const float vel[3],
+                        uint8_t vmask, float h_acc, float v_acc, float s_acc)
+{
+    const int has_alt = (fix->flags & MCA_FIX_ALT) != 0u;
+    float ned[3], c[9], cl[3], wl[3], cwl[3], lx[9], clx[9];
+    (void)mca_geo_to_ned(&ins->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : ins->home.alt_mm, ned);
+    const float *l = ins->cfg.lever_arm_b_m;
+    mca_quat_to_dcm(c, s->q);
+    mat3_vec(cl, c, l);
+    cross3(wl, s->w, l);
+    mat3_vec(cwl, c, wl);
+    /* C [l x] */
+    const float lsk[9] = {0.0f, -l[2], l[1], l[2], 0.0f, -l[0], -l[1], l[0], 0.0f};
+    memcpy(lx, lsk, sizeof(lx));
+    mca_mat_mul(clx, c, lx, 3u, 3u, 3u);
+    float *h = ins->upd_h, *z = ins->upd_z, *r = ins->upd_r;
+    memset(h, 0, sizeof(ins->upd_h));
+    memset(r, 0, sizeof(ins->upd_r));
+    float var[MCA_MEAS_MAX];
+    size_t m = 0u;
+    float skew_cl[9], skew_cwl[9];
+    const float scl[9] = {0.0f, -cl[2], cl[1], cl[2], 0.0f, -cl[0], -cl[1], cl[0], 0.0f};
+    const float scw[9] = {0.0f, -cwl[2], cwl[1], cwl[2], 0.0f, -cwl[0], -cwl[1], cwl[0], 0.0f};
+    memcpy(skew_cl, scl, sizeof(skew_cl));
+    memcpy(skew_cwl, scw, sizeof(skew_cwl));
+    for (size_t i = 0; i < 3u; ++i) {
+        if (i == 2u && !(has_alt && fix->fix_type >= 3u)) {
+            continue;
+        }
+        float *row = &h[m * NX];
+        row[MCA_INS_DR + i] = 1.0f;
+        for (size_t j = 0; j < 3u; ++j) {
+            row[MCA_INS_PHI + j] = -skew_cl[i * 3u + j];
+        }
+        z[m] = ned[i] - s->r[i] - cl[i];
+        var[m] = i < 2u ? h_acc * h_acc : v_acc * v_acc;
+        ++m;
+    }
+    for (size_t i = 0; i < 3u; ++i) {
+        if ((vmask & (1u << i)) == 0u) {
+            continue;
+        }
+        float *row = &h[m * NX];
+        row[MCA_INS_DV + i] = 1.0f;
+        for (size_t j = 0; j < 3u; ++j) {
+            row[MCA_INS_PHI + j] = -skew_cwl[i * 3u + j];
+            row[MCA_INS_BG + j] = clx[i * 3u + j];
+        }
+        z[m] = vel[i] - s->v[i] - cwl[i];
+        var[m] = s_acc * s_acc;
+        ++m;
+    }
+    for (size_t i = 0; i < m; ++i) {
+        r[i * m + i] = var[i];
+    }
+    return m;
+}
+
+mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
+{
+    if (ins == NULL || fix == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (fix->fix_type < 2u) {
+        return MCA_ERR_BAD_ARG;
+    }
+    const int has_alt = (fix->flags & MCA_FIX_ALT) != 0u;
+    const int has_vne = (fix->flags & MCA_FIX_VEL_NE) != 0u;
+    const int has_vd = (fix->flags & MCA_FIX_VEL_D) != 0u;
+    if (mca_geo_check(fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0) != MCA_OK) {
+        return MCA_ERR_RANGE;
+    }
+    if ((has_vne && (!isfinite(fix->vel_ned_mps[0]) || !isfinite(fix->vel_ned_mps[1]))) ||
+        (has_vd && !isfinite(fix->vel_ned_mps[2]))) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (ins->have_fix && fix->t_us <= ins->t_lastfix_us) {
+        return MCA_ERR_TIME_BACKWARDS;
+    }
+    const float vel[3] = {has_vne ? fix->vel_ned_mps[0] : 0.0f, has_vne ? fix->vel_ned_mps[1] : 0.0f,
+                          has_vd ? fix->vel_ned_mps[2] : 0.0f};
+    const uint8_t vmask = (uint8_t)((has_vne ? 3u : 0u) | (has_vd ? 4u : 0u));
+    const float h_acc = sigma_or(fix->h_acc_m, ins->cfg.gps_pos_sigma_m);
+    const float v_acc = sigma_or(fix->v_acc_m, ins->cfg.gps_alt_sigma_m);
+    const float s_acc = sigma_or(fix->s_acc_mps, ins->cfg.gps_vel_sigma_mps);
+    if (!ins->home_set) {
+        (void)mca_geo_set_home(&ins->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
+        ins->home_set = 1u;
+        const float lat = (float)fix->lat_e7 * E7_TO_RAD;
+        ins->g_align_mps2 = mca_geo_gravity(lat, (float)ins->home.alt_mm * 1e-3f);
+    }
+    mca_status_t st = MCA_OK;
+    if (!ins->aligned) {
+        ins->n_gps_skip++;
+    } else if (!ins->nav) {
+        start_nav(ins, fix, vel, vmask, h_acc, v_acc, s_acc);
+        float q_now[4];
+        memcpy(q_now, ins->q_nb, sizeof(q_now));
+        cog_align(ins, vel, has_vne, s_acc, q_now);
+    } else {
+        ins_sol_t s;
+        if (!solution_at(ins, fix->t_us, &s)) {
+            ins->flags |= MCA_INS_FLAG_HIST_MISS;
+            ins->n_gps_skip++;
+        } else {
+            ins->flags &= ~(uint32_t)MCA_INS_FLAG_HIST_MISS;
+            cog_align(ins, vel, has_vne, s_acc, s.q);
+            const size_t m = gnss_rows(ins, fix, &s, vel, vmask, h_acc, v_acc, s_acc);
+            memset(ins->dx, 0, sizeof(ins->dx));
+            st = mca_kf_update(ins->dx, ins->p, NX, ins->upd_h, ins->upd_z, ins->upd_r, m, &ins->cfg.robust,
+                               &ins->rs, ins->ws, MCA_INS_WS_LEN, &ins->rep);
+            if (st != MCA_OK) {
+                ins->n_gps_rej++;
+                return st; /* x, P, memory unchanged by mca_kf_update */
+            }
+            ins->last_gps_t = ins->rep.t_stat;
+            ins->last_gps_m = (uint32_t)m;
+            if (ins->rep.rejected) {
+                ins->flags |= MCA_INS_FLAG_REJECTED;
+                ins->n_gps_rej++;
+            } else {
+                ins->flags &= ~(uint32_t)MCA_INS_FLAG_REJECTED;
+                correct(ins, ins->dx);
+                ins->n_gps_upd++;
+            }
+        }
+    }
+    ins->have_fix = 1u;
+    ins->t_lastfix_us = fix->t_us;
+    return st;
+}
+
+/* ------------------------------------------------------------------------ magnetometer */
+
+mca_status_t mca_ins_mag(mca_ins_t *ins, uint64_t t_us, const float mag_b[3])
+{
+    if (ins == NULL || mag_b == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!mca_all_finite(mag_b, 3u)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (ins->cfg.yaw_source != MCA_YAW_MAG || !ins->aligned) {
+        return MCA_OK;
+    }
+    if (ins->have_mag && (t_us < ins->t_lastmag_us || t_us - ins->t_lastmag_us < us(ins->cfg.mag_period_s))) {
+        return MCA_OK;
+    }
+    if (ins->yaw_aligned && !ins->nav) {
+        return MCA_OK; /* updates only while navigating */
+    }
+    float e[3];
+    mca_quat_to_euler(e, ins->q_nb);
+    if (!(norm3(mag_b) > 0.0f) || fabsf(e[1]) > MAG_MAX_TILT) {
+        return MCA_OK; /* gate: skipped */
+    }
+    /* tilt-compensated heading (ALGORITHMS.md 7): m_l = R_y(theta) R_x(phi) m_b */
+    float sp, cp, st, ct;
+    mca_sincosf(e[0], &sp, &cp);
+    mca_sincosf(e[1], &st, &ct);
+    const float mlx = ct * mag_b[0] + st * sp * mag_b[1] + st * cp * mag_b[2];
+    const float mly = cp * mag_b[1] - sp * mag_b[2];
+    const float psi_m = atan2f(-mly, mlx) + ins->cfg.mag_declination_rad;
+    const float sig2 = ins->cfg.mag_yaw_sigma_rad * ins->cfg.mag_yaw_sigma_rad;
+    if (!ins->yaw_aligned) {
+        yaw_turn(ins, mca_wrap_pi(psi_m - e[2]), sig2);
+    } else {
+        float c[9];
+        mca_quat_to_dcm(c, ins->q_nb);
+        const float d = c[0] * c[0] + c[3] * c[3];
+        float *h = ins->upd_h;
+        memset(h, 0, NX * sizeof(float));
+        h[MCA_INS_PHI] = -c[0] * c[6] / d;
+        h[MCA_INS_PHI + 1u] = -c[3] * c[6] / d;
+        h[MCA_INS_PHI + 2u] = 1.0f;
+        ins->upd_z[0] = mca_wrap_pi(psi_m - e[2]);
+        ins->upd_r[0] = sig2;
+        memset(ins->dx, 0, sizeof(ins->dx));
+        const mca_status_t s = mca_kf_update(ins->dx, ins->p, NX, h, ins->upd_z, ins->upd_r, 1u, NULL, NULL, ins->ws,
+                                             MCA_INS_WS_LEN, NULL);
+        if (s != MCA_OK) {
+            return s;
+        }
+        correct(ins, ins->dx);
+    }
+    ins->have_mag = 1u;
+    ins->t_lastmag_us = t_us;
+    return MCA_OK;
+}
+
+/* ------------------------------------------------------------------------ output, replay */
+
+void mca_ins_output(const mca_ins_t *ins, mca_ins_output_t *out)
+{
+    if (ins == NULL || out == NULL) {
+        return;
+    }
+    memset(out, 0, sizeof(*out));
+    out->t_us = ins->t_imu_us;
+    memcpy(out->q_nb, ins->q_nb, sizeof(out->q_nb));
+    mca_quat_to_euler(out->euler_rad, ins->q_nb);
+    if (ins->nav) {
+        pos_home_ned(ins, out->pos_ned_m);
+    }
+    memcpy(out->vel_ned_mps, ins->vel_ned_mps, sizeof(out->vel_ned_mps));
+    out->lat_e7 = ins->lat_e7;
+    out->lon_e7 = ins->lon_e7;
+    out->alt_mm = ins->alt_mm;
+    memcpy(out->gyro_bias_rps, ins->bg_rps, sizeof(out->gyro_bias_rps));
+    memcpy(out->accel_bias_mps2, ins->ba_mps2, sizeof(out->accel_bias_mps2));
+    for (size_t i = 0; i < NX; ++i) {
+        out->p_diag[i] = ins->p[i * (NX + 1u)];
+    }
+    out->gps_t = ins->last_gps_t;
+    out->gps_m = ins->last_gps_m;
+    uint32_t f = ins->flags;
+    f |= ins->aligned ? (uint32_t)MCA_INS_FLAG_ALIGNED : 0u;
+    f |= ins->home_set ? (uint32_t)MCA_INS_FLAG_HOME_SET : 0u;
+    f |= ins->nav ? (uint32_t)MCA_INS_FLAG_NAV : 0u;
+    f |= ins->yaw_aligned ? (uint32_t)MCA_INS_FLAG_YAW_ALIGNED : 0u;
+    const int lost = !ins->have_fix ||
+                     (ins->t_imu_us > ins->t_lastfix_us && ins->t_imu_us - ins->t_lastfix_us > us(ins->cfg.gps_timeout_s));
+    f |= lost ? (uint32_t)MCA_INS_FLAG_GPS_LOST : 0u;
+    out->flags = f;
+    out->n_gps_upd = ins->n_gps_upd;
+    out->n_gps_rej = ins->n_gps_rej;
+    out->n_gps_skip = ins->n_gps_skip;
+}
+
+mca_status_t mca_ins_replay(mca_ins_t *ins, const mca_imu_sample_t *imu, size_t n_imu, const mca_gps_event_t *gps,
+                            size_t n_gps, const mca_mag_sample_t *mag, size_t n_mag, mca_ins_output_t *out,
+                            uint8_t *imu_status, uint8_t *gps_status, uint8_t *mag_status)
+{
+    if (ins == NULL || (n_imu > 0u && (imu == NULL || out == NULL)) || (n_gps > 0u && gps == NULL) ||
+        (n_mag > 0u && mag == NULL)) {
+        return MCA_ERR_NULL;
+    }
+    size_t i = 0u, j = 0u, k = 0u;
+    /* bounded: each pass consumes one event (ALGORITHMS.md 9) */
+    while (i < n_imu || j < n_gps || k < n_mag) {
+        const uint64_t ti = i < n_imu ? imu[i].t_us : UINT64_MAX;
+        const uint64_t tg = j < n_gps ? gps[j].t_rx_us : UINT64_MAX;
+        const uint64_t tm = k < n_mag ? mag[k].t_us : UINT64_MAX;
+        if (i < n_imu && ti <= tg && ti <= tm) {
+            const mca_status_t st = mca_ins_imu(ins, ti, imu[i].gyro_b_rps, imu[i].accel_b_mps2);
+            if (imu_status != NULL) {
+                imu_status[i] = (uint8_t)st;
+            }
+            mca_ins_output(ins, &out[i]);
+            ++i;
+        } else if (j < n_gps && tg <= tm) {
+            const mca_status_t st = mca_ins_gps(ins, &gps[j].fix);
+            if (gps_status != NULL) {
+                gps_status[j] = (uint8_t)st;
+            }
+            ++j;
+        } else {
+            const mca_status_t st = mca_ins_mag(ins, tm, mag[k].mag_b);
+            if (mag_status != NULL) {
+                mag_status[k] = (uint8_t)st;
+            }
+            ++k;
+        }
+    }
+    return MCA_OK;
+}
