@@ -166,7 +166,10 @@ static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f
         const float inv = 1.0f / (float)nav->init_n;
         const float fm[3] = {nav->init_f_sum[0] * inv, nav->init_f_sum[1] * inv, nav->init_f_sum[2] * inv};
         const float wm[3] = {nav->init_w_sum[0] * inv, nav->init_w_sum[1] * inv, nav->init_w_sum[2] * inv};
-        if (norm3(wm) <= nav->cfg.init_gyro_still_rps &&
+        /* moving by GPS: the newest fix's horizontal speed (ALGORITHMS.md 8, IMU step 4) */
+        const int moving = nav->have_fix && (nav->prev_vel_mask & 3u) == 3u &&
+                           nav->vel_prev[0] * nav->vel_prev[0] + nav->vel_prev[1] * nav->vel_prev[1] > 0.25f;
+        if (!moving && norm3(wm) <= nav->cfg.init_gyro_still_rps &&
             fabsf(norm3(fm) - nav->g_mps2) <= nav->cfg.init_acc_still_mps2) {
             align(nav, fm, wm, nav->cfg.att.att0_var_rad2);
             return;

@@ -486,7 +486,8 @@ class Nav:
             f_mean = tuple(v / n for v in self.win_f)
             w_mean = tuple(v / n for v in self.win_w)
             still = (math.hypot(*w_mean) <= cfg.init_gyro_still_rps
-                     and abs(math.hypot(*f_mean) - self.g) <= cfg.init_acc_still_mps2)
+                     and abs(math.hypot(*f_mean) - self.g) <= cfg.init_acc_still_mps2
+                     and not self._moving_by_gps())
             if still:
                 self._align(t_us, f_mean, w_mean, att_var)
                 return
@@ -494,6 +495,12 @@ class Nav:
         if t_us - self.t_first_us >= self._init_timeout_us:
             n = self.all_n
             self._align(t_us, tuple(v / n for v in self.all_f), (0.0, 0.0, 0.0), 25.0 * att_var)
+
+    def _moving_by_gps(self) -> bool:
+        """The newest fix reports a horizontal speed above 0.5 m/s (ALGORITHMS.md 8, IMU step 4)."""
+        if not (self.prev_has_vel[0] and self.prev_has_vel[1]):
+            return False
+        return math.hypot(self.prev_vel[0], self.prev_vel[1]) > 0.5
 
     def _align(self, t_us: int, f_mean: tuple, b: tuple, att_var: float) -> None:
         fx, fy, fz = f_mean
