@@ -67,6 +67,7 @@ from typing import Any
 import numpy as np
 
 from mcahrs.samples import GNSS_HAS_VEL_NE, Recording
+from mcahrs.sim.truth import quat_conj, quat_mul  # the one vectorised quaternion algebra
 
 DEG = 180.0 / math.pi
 
@@ -103,26 +104,6 @@ INS = "INS 15-state"
 
 
 # ================================================================ quaternions and angles
-
-
-def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of (N, 4) [w, x, y, z] arrays (or broadcastable)."""
-    aw, ax, ay, az = (a[..., i] for i in range(4))
-    bw, bx, by, bz = (b[..., i] for i in range(4))
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        axis=-1,
-    )
-
-
-def quat_conj(q: np.ndarray) -> np.ndarray:
-    """Conjugate (inverse of a unit quaternion)."""
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def quat_rotvec(q: np.ndarray) -> np.ndarray:
