@@ -17,6 +17,7 @@
 #define ALT_MIN_MM (-1000000)  /* section 6 range */
 #define ALT_MAX_MM 100000000
 #define MAG_MAX_TILT (80.0f * DEG)
+#define STILL_SPEED 0.5f       /* GNSS ground speed below which a still window may re-level, m/s */
 #define HALF_SPAN_US 3600000000LL /* 360 deg of longitude in 1e-7 deg */
 
 /* compile-time checks: the propagation needs three 15 x 15 matrices of the update's scratch,
@@ -40,6 +41,7 @@ void mca_ins_config_default(mca_ins_config_t *c)
     c->yaw0_rad = 0.0f;
     c->gyro_bias0_var_rps2 = (0.5f * DEG) * (0.5f * DEG);
     c->gyro_bias_still_var_rps2 = (0.05f * DEG) * (0.05f * DEG);
+    c->att_still_var_rad2 = (0.2f * DEG) * (0.2f * DEG);
     c->accel_bias0_var_mps4 = 0.1f * 0.1f;
     c->vel0_var_m2ps2 = 1.0f;
     c->cov_dt_s = 0.01f;
@@ -101,7 +103,7 @@ mca_status_t mca_ins_config_check(const mca_ins_config_t *c)
     int ok = nonneg(c->gyro_noise_rps) && nonneg(c->accel_noise_mps2) && nonneg(c->gyro_bias_rw_rps2) &&
              nonneg(c->accel_bias_rw_mps3) && tau_ok(c->gyro_bias_tau_s) && tau_ok(c->accel_bias_tau_s) &&
              pos(c->att0_var_rad2) && pos(c->yaw0_var_rad2) && isfinite(c->yaw0_rad) &&
-             pos(c->gyro_bias0_var_rps2) && pos(c->gyro_bias_still_var_rps2) && pos(c->accel_bias0_var_mps4) && pos(c->vel0_var_m2ps2) &&
+             pos(c->gyro_bias0_var_rps2) && pos(c->gyro_bias_still_var_rps2) && pos(c->att_still_var_rad2) && pos(c->accel_bias0_var_mps4) && pos(c->vel0_var_m2ps2) &&
              nonneg(c->cov_dt_s) && c->cov_dt_s <= 0.1f && c->earth_rate <= 1u && c->transport_rate <= 1u &&
              c->yaw_source <= MCA_YAW_COG && nonneg(c->gravity_mps2) && pos(c->imu_dt_max_s) &&
              pos(c->init_still_s) && nonneg(c->init_gyro_still_rps) && nonneg(c->init_acc_still_mps2) &&
@@ -318,19 +320,6 @@ static void pos_home_ned(const mca_ins_t *ins, float r[3])
 
 /* ------------------------------------------------------------------------ covariance */
 
-/* Yaw frozen until the first yaw observation (ALGORITHMS.md 10, Yaw). */
-static void yaw_decouple(mca_ins_t *ins)
-{
-    if (ins->yaw_aligned) {
-        return;
-    }
-    for (size_t i = 0; i < NX; ++i) {
-        ins->p[i * NX + MCA_INS_PHI + 2u] = 0.0f;
-        ins->p[(MCA_INS_PHI + 2u) * NX + i] = 0.0f;
-    }
-    ins->p[(MCA_INS_PHI + 2u) * (NX + 1u)] = ins->cfg.yaw0_var_rad2;
-}
-
 static void error_model(const mca_ins_t *ins, const float f_n[3], float *f)
 {
     ins_frame_t fr;
@@ -416,7 +405,6 @@ static void cov_propagate(mca_ins_t *ins, float t_s, const float f_n[3])
         }
     }
     mca_mat_symmetrize(ins->p, NX);
-    yaw_decouple(ins);
 }
 
 /* ------------------------------------------------------------------------ history */
@@ -518,12 +506,8 @@ static void yaw_turn(mca_ins_t *ins, float dpsi, float var)
 }
 
 /* Apply the error-state estimate dx to the state and every history entry (ALGORITHMS.md 10). */
-static void correct(mca_ins_t *ins, float dx[NX])
+static void correct(mca_ins_t *ins, const float dx[NX])
 {
-    if (!ins->yaw_aligned) {
-        dx[MCA_INS_PHI + 2u] = 0.0f;
-        yaw_decouple(ins);
-    }
     ins_frame_t fr;
     frame_of(ins, &fr);
     float dq[4];
@@ -556,23 +540,38 @@ static float g_still(const mca_ins_t *ins)
     return ins->home_set ? ins->g_align_mps2 : G0;
 }
 
-static void align(mca_ins_t *ins, const float f_mean[3], const float bias[3], int still)
+/* Roll and pitch from a mean specific force, yaw given; the gyro bias; the still-window state. */
+static void level(mca_ins_t *ins, const float f_mean[3], const float bias[3], float yaw, int still)
 {
     ins->bg0_var = still ? ins->cfg.gyro_bias_still_var_rps2 : ins->cfg.gyro_bias0_var_rps2;
+    ins->level_still = still ? 1u : 0u;
     const float eul[3] = {atan2f(-f_mean[1], -f_mean[2]),
-                          atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])),
-                          ins->cfg.yaw0_rad};
+                          atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])), yaw};
     mca_quat_from_euler(ins->q_nb, eul);
     memcpy(ins->bg_rps, bias, sizeof(ins->bg_rps));
     memset(ins->ba_mps2, 0, sizeof(ins->ba_mps2));
+    memset(ins->init_f_sum, 0, sizeof(ins->init_f_sum));
+    memset(ins->init_w_sum, 0, sizeof(ins->init_w_sum));
+    ins->init_n = 0u;
+    ins->init_win_us = 0u;
+}
+
+static void align(mca_ins_t *ins, const float f_mean[3], const float bias[3], int still)
+{
+    level(ins, f_mean, bias, ins->cfg.yaw0_rad, still);
     ins->aligned = 1u;
     ins->yaw_aligned = ins->cfg.yaw_source == MCA_YAW_NONE ? 1u : 0u;
     ins->yaw_var_align = ins->cfg.yaw0_var_rad2;
 }
 
-/* ALGORITHMS.md 8, IMU step 4 (the INS uses the same rule). */
-static void accumulate_alignment(mca_ins_t *ins, const float w[3], const float f[3], uint32_t dt_us)
+/* ALGORITHMS.md 8, IMU step 4, with the INS's timeout fallback and re-levelling (section 10).
+ * Returns 1 when this sample aligned or re-levelled (it is then not propagated). */
+static int accumulate_alignment(mca_ins_t *ins, const float w[3], const float f[3], uint32_t dt_us)
 {
+    for (size_t i = 0; i < 3u; ++i) {
+        ins->init_all_f_sum[i] += f[i]; /* every sample: the timeout fallback (ALGORITHMS.md 10) */
+    }
+    ins->init_all_n++;
     const int still =
         norm3(w) <= ins->cfg.init_gyro_still_rps && fabsf(norm3(f) - g_still(ins)) <= ins->cfg.init_acc_still_mps2;
     if (still) {
@@ -593,16 +592,38 @@ static void accumulate_alignment(mca_ins_t *ins, const float w[3], const float f
         const float inv = 1.0f / (float)ins->init_n;
         const float fm[3] = {ins->init_f_sum[0] * inv, ins->init_f_sum[1] * inv, ins->init_f_sum[2] * inv};
         const float wm[3] = {ins->init_w_sum[0] * inv, ins->init_w_sum[1] * inv, ins->init_w_sum[2] * inv};
-        align(ins, fm, wm, 1);
-    } else if (ins->t_imu_us - ins->t_first_us >= us(ins->cfg.init_timeout_s)) {
+        if (!ins->aligned) {
+            align(ins, fm, wm, 1);
+            return 1;
+        }
+        /* waiting for navigation: re-level (yaw kept) only when the GNSS says stopped too; the
+         * still test alone passes a straight-line acceleration of 3 m/s^2 (| |f| - g | = 0.45) */
+        const int stopped = ins->have_fix && ins->fix_speed_mps >= 0.0f && ins->fix_speed_mps < STILL_SPEED &&
+                            ins->t_imu_us - ins->t_lastfix_us <= us(ins->cfg.gps_timeout_s);
+        if (stopped) {
+            level(ins, fm, wm, yaw_of(ins->q_nb), 1);
+            return 1;
+        }
+        memset(ins->init_f_sum, 0, sizeof(ins->init_f_sum)); /* a new window */
+        memset(ins->init_w_sum, 0, sizeof(ins->init_w_sum));
+        ins->init_n = 0u;
+        ins->init_win_us = 0u;
+        return 0;
+    }
+    if (!ins->aligned && ins->t_imu_us - ins->t_first_us >= us(ins->cfg.init_timeout_s)) {
         if (ins->init_n > 0u) {
             const float inv = 1.0f / (float)ins->init_n;
             const float fm[3] = {ins->init_f_sum[0] * inv, ins->init_f_sum[1] * inv, ins->init_f_sum[2] * inv};
             align(ins, fm, zero, 0);
         } else {
-            align(ins, f, zero, 0);
+            const float inv = 1.0f / (float)ins->init_all_n;
+            const float fa[3] = {ins->init_all_f_sum[0] * inv, ins->init_all_f_sum[1] * inv,
+                                 ins->init_all_f_sum[2] * inv};
+            align(ins, fa, zero, 0);
         }
+        return 1;
     }
+    return 0;
 }
 
 /* ALGORITHMS.md 10, Mechanization steps 1-8. */
@@ -691,12 +712,19 @@ mca_status_t mca_ins_imu(mca_ins_t *ins, uint64_t t_us, const float w[3], const 
     if (fabsf(f[0]) >= sat || fabsf(f[1]) >= sat || fabsf(f[2]) >= sat) {
         ins->flags |= MCA_INS_FLAG_SATURATED;
     }
+    for (size_t i = 0; i < 3u; ++i) {
+        ins->f_last_mps2[i] = f[i] - ins->ba_mps2[i];
+    }
     if (!ins->aligned) {
-        accumulate_alignment(ins, w, f, dt_us);
+        (void)accumulate_alignment(ins, w, f, dt_us);
         return MCA_OK;
     }
     if (!ins->nav) {
-        /* attitude only until the first usable fix (no position: no earth or transport rate) */
+        /* attitude only until navigation starts (no position: no earth or transport rate); a
+         * sample that completes a still window re-levels instead (ALGORITHMS.md 10) */
+        if (accumulate_alignment(ins, w, f, dt_us)) {
+            return MCA_OK;
+        }
         float rv[3], dq[4], qn[4];
         for (size_t i = 0; i < 3u; ++i) {
             ins->w_last_rps[i] = w[i] - ins->bg_rps[i];
@@ -745,11 +773,17 @@ static void start_nav(mca_ins_t *ins, const mca_gps_fix_t *fix, const float vel[
     memset(ins->off_ned_m, 0, sizeof(ins->off_ned_m));
     memcpy(ins->vel_ned_mps, vel, 3u * sizeof(float));
     if (ins->t_imu_us > fix->t_us) {
+        /* carried to the present with the newest sample's acceleration a = C f + g_n */
         const float d = span_s(fix->t_us, ins->t_imu_us);
         ins_frame_t fr;
         frame_of(ins, &fr);
+        float c[9], a[3];
+        mca_quat_to_dcm(c, ins->q_nb);
+        mat3_vec(a, c, ins->f_last_mps2);
+        a[2] += gravity_of(ins, &fr);
         for (size_t i = 0; i < 3u; ++i) {
-            ins->off_ned_m[i] = vel[i] * d;
+            ins->off_ned_m[i] = vel[i] * d + 0.5f * a[i] * d * d;
+            ins->vel_ned_mps[i] = vel[i] + a[i] * d;
         }
         fold(ins, &fr);
     }
@@ -763,7 +797,7 @@ static void start_nav(mca_ins_t *ins, const mca_gps_fix_t *fix, const float vel[
                          (vmask & 4u) ? s_acc * s_acc : c->vel0_var_m2ps2,
                          c->att0_var_rad2,
                          c->att0_var_rad2,
-                         ins->yaw_aligned ? ins->yaw_var_align : c->yaw0_var_rad2,
+                         ins->yaw_var_align,
                          ins->bg0_var,
                          ins->bg0_var,
                          ins->bg0_var,
@@ -772,6 +806,29 @@ static void start_nav(mca_ins_t *ins, const mca_gps_fix_t *fix, const float vel[
                          c->accel_bias0_var_mps4};
     for (size_t i = 0; i < NX; ++i) {
         ins->p[i * (NX + 1u)] = d[i];
+    }
+    if (ins->level_still) {
+        /* the levelled tilt absorbed the accelerometer bias: phi_N = (C db_a)_E / g,
+         * phi_E = -(C db_a)_N / g (ALGORITHMS.md 10, Start of navigation) */
+        ins_frame_t fr;
+        frame_of(ins, &fr);
+        const float g = gravity_of(ins, &fr), sb2 = c->accel_bias0_var_mps4;
+        float cn[9], m[6];
+        mca_quat_to_dcm(cn, ins->q_nb);
+        for (size_t j = 0; j < 3u; ++j) {
+            m[j] = cn[3u + j] / g;       /* row phi_N */
+            m[3u + j] = -cn[j] / g;      /* row phi_E */
+        }
+        for (size_t i = 0; i < 2u; ++i) {
+            for (size_t j = 0; j < 2u; ++j) {
+                const float mm = m[i * 3u] * m[j * 3u] + m[i * 3u + 1u] * m[j * 3u + 1u] + m[i * 3u + 2u] * m[j * 3u + 2u];
+                ins->p[(MCA_INS_PHI + i) * NX + MCA_INS_PHI + j] = sb2 * mm + (i == j ? c->att_still_var_rad2 : 0.0f);
+            }
+            for (size_t j = 0; j < 3u; ++j) {
+                ins->p[(MCA_INS_PHI + i) * NX + MCA_INS_BA + j] = sb2 * m[i * 3u + j];
+                ins->p[(MCA_INS_BA + j) * NX + MCA_INS_PHI + i] = sb2 * m[i * 3u + j];
+            }
+        }
     }
     memset(ins->cov_dv_n, 0, sizeof(ins->cov_dv_n));
     ins->cov_acc_us = 0u;
@@ -897,10 +954,15 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
     if (!ins->aligned) {
         ins->n_gps_skip++;
     } else if (!ins->nav) {
-        start_nav(ins, fix, vel, vmask, h_acc, v_acc, s_acc);
+        /* navigation starts with the heading known (ALGORITHMS.md 10, Start of navigation) */
         float q_now[4];
         memcpy(q_now, ins->q_nb, sizeof(q_now));
         cog_align(ins, vel, has_vne, s_acc, q_now);
+        if (ins->yaw_aligned) {
+            start_nav(ins, fix, vel, vmask, h_acc, v_acc, s_acc);
+        } else {
+            ins->n_gps_skip++;
+        }
     } else {
         ins_sol_t s;
         if (!solution_at(ins, fix->t_us, &s)) {
@@ -908,7 +970,6 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
             ins->n_gps_skip++;
         } else {
             ins->flags &= ~(uint32_t)MCA_INS_FLAG_HIST_MISS;
-            cog_align(ins, vel, has_vne, s_acc, s.q);
             const size_t m = gnss_rows(ins, fix, &s, vel, vmask, h_acc, v_acc, s_acc);
             memset(ins->dx, 0, sizeof(ins->dx));
             st = mca_kf_update(ins->dx, ins->p, NX, ins->upd_h, ins->upd_z, ins->upd_r, m, &ins->cfg.robust,
@@ -931,6 +992,7 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
     }
     ins->have_fix = 1u;
     ins->t_lastfix_us = fix->t_us;
+    ins->fix_speed_mps = has_vne ? sqrtf(vel[0] * vel[0] + vel[1] * vel[1]) : -1.0f;
     return st;
 }
 

@@ -1210,6 +1210,17 @@ def _dispatch_external(name: str, argv: list[str]) -> int:
     return int(rc) if rc is not None else 0
 
 
+def _dispatch_allan(argv: list[str]) -> int:
+    """``allan`` lives in mcahrs.allan (``main_allan``), imported only when used."""
+    try:
+        mod = importlib.import_module("mcahrs.allan")
+    except ImportError as exc:
+        print(f"mcahrs allan: not available: cannot import mcahrs.allan ({exc})", file=sys.stderr)
+        return 2
+    rc = mod.main_allan(argv)
+    return int(rc) if rc is not None else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="mcahrs", description="MCAHRS: GPS-aided maneuver-compensated attitude "
                                  "estimator (C core) - simulate, replay, live bench.")
@@ -1256,12 +1267,17 @@ def build_parser() -> argparse.ArgumentParser:
                        ("convert", "convert a dataset to the wire format (mcahrs.evaluate)")):
         p = sub.add_parser(name, help=text, add_help=False)
         p.add_argument("args", nargs=argparse.REMAINDER)
+    p = sub.add_parser("allan", help="IMU noise parameters from a static recording (mcahrs.allan)",
+                       add_help=False)
+    p.add_argument("args", nargs=argparse.REMAINDER)
     return ap
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``mcahrs`` console script; returns the exit status."""
     args_list = list(sys.argv[1:] if argv is None else argv)
+    if args_list and args_list[0] == "allan":
+        return _dispatch_allan(args_list[1:])
     if args_list and args_list[0] in ("evaluate", "convert"):
         return _dispatch_external(args_list[0], args_list[1:])
     args = build_parser().parse_args(args_list)

@@ -42,9 +42,18 @@ def check(status: int, what: str) -> None:
 # ---------------------------------------------------------------- struct <-> NumPy
 
 _PRIMS = {
-    "float": np.float32, "double": np.float64, "uint8_t": np.uint8, "int8_t": np.int8,
-    "uint16_t": np.uint16, "int16_t": np.int16, "uint32_t": np.uint32, "int32_t": np.int32,
-    "uint64_t": np.uint64, "int64_t": np.int64, "int": np.intc, "size_t": np.uintp,
+    "float": np.float32,
+    "double": np.float64,
+    "uint8_t": np.uint8,
+    "int8_t": np.int8,
+    "uint16_t": np.uint16,
+    "int16_t": np.int16,
+    "uint32_t": np.uint32,
+    "int32_t": np.int32,
+    "uint64_t": np.uint64,
+    "int64_t": np.int64,
+    "int": np.intc,
+    "size_t": np.uintp,
 }
 
 
@@ -117,6 +126,7 @@ def _apply(obj: Any, overrides: Mapping[str, Any], where: str) -> None:
 
 # ---------------------------------------------------------------- CS filter
 
+
 def cs_config(vertical: bool = False, **overrides: Any) -> Any:
     """A ``mca_cs_config_t`` with the documented defaults (horizontal or vertical) and overrides."""
     cfg = ffi.new("mca_cs_config_t *")
@@ -144,8 +154,9 @@ def singer_q(alpha: float, t_s: float, s2: float) -> np.ndarray:
 class Cs3:
     """Three-axis (N, E, D) CS maneuver filter of the C core."""
 
-    def __init__(self, cfg_h: Any = None, cfg_v: Any = None, pos_ned_m: Any = None,
-                 vel_ned_mps: Any = None) -> None:
+    def __init__(
+        self, cfg_h: Any = None, cfg_v: Any = None, pos_ned_m: Any = None, vel_ned_mps: Any = None
+    ) -> None:
         self._cs = ffi.new("mca_cs3_t *")
         self._ws = ffi.new("float[]", lib.MCA_CS_WS_LEN)
         self._rep = ffi.new("mca_update_report_t[3]")
@@ -158,19 +169,36 @@ class Cs3:
     def predict(self, t_s: float) -> None:
         check(lib.mca_cs3_predict(self._cs, t_s), f"mca_cs3_predict(t_s={t_s!r})")
 
-    def update(self, pos_ned_m: Any, vel_ned_mps: Any, r_pos_m2: Any, r_vel_m2ps2: Any,
-               mask: Any) -> dict[str, np.ndarray]:
+    def update(
+        self, pos_ned_m: Any, vel_ned_mps: Any, r_pos_m2: Any, r_vel_m2ps2: Any, mask: Any
+    ) -> dict[str, np.ndarray]:
         """Update; returns per-axis ``m``, ``nu`` (3 x 2), ``c`` (3 x 2 x 2), ``t_stat`` (3)."""
-        arrs = [_as_f32(a, (3,), n) for a, n in ((pos_ned_m, "pos_ned_m"), (vel_ned_mps, "vel_ned_mps"),
-                                                 (r_pos_m2, "r_pos_m2"), (r_vel_m2ps2, "r_vel_m2ps2"))]
+        arrs = [
+            _as_f32(a, (3,), n)
+            for a, n in (
+                (pos_ned_m, "pos_ned_m"),
+                (vel_ned_mps, "vel_ned_mps"),
+                (r_pos_m2, "r_pos_m2"),
+                (r_vel_m2ps2, "r_vel_m2ps2"),
+            )
+        ]
         m = np.ascontiguousarray(mask, dtype=np.uint8)
         if m.shape != (3,):
             raise errors.BadArgError(f"mask: expected shape (3,), got {m.shape}")
-        st = lib.mca_cs3_update(self._cs, *(_fptr(a) for a in arrs), ffi.cast("uint8_t *", ffi.from_buffer(m)),
-                                self._ws, self._rep)
+        st = lib.mca_cs3_update(
+            self._cs,
+            *(_fptr(a) for a in arrs),
+            ffi.cast("uint8_t *", ffi.from_buffer(m)),
+            self._ws,
+            self._rep,
+        )
         check(st, "mca_cs3_update")
-        out = {"m": np.zeros(3, np.int64), "nu": np.full((3, 2), np.nan), "c": np.full((3, 2, 2), np.nan),
-               "t_stat": np.full(3, np.nan)}
+        out = {
+            "m": np.zeros(3, np.int64),
+            "nu": np.full((3, 2), np.nan),
+            "c": np.full((3, 2, 2), np.nan),
+            "t_stat": np.full(3, np.nan),
+        }
         for i in range(3):
             r = self._rep[i]
             k = r.m
@@ -181,8 +209,16 @@ class Cs3:
                 out["t_stat"][i] = r.t_stat
         return out
 
-    def run(self, dt_s: Any, pos_ned_m: Any, vel_ned_mps: Any, r_pos_m2: Any, r_vel_m2ps2: Any,
-            mask: Any, want_p: bool = True) -> dict[str, np.ndarray]:
+    def run(
+        self,
+        dt_s: Any,
+        pos_ned_m: Any,
+        vel_ned_mps: Any,
+        r_pos_m2: Any,
+        r_vel_m2ps2: Any,
+        mask: Any,
+        want_p: bool = True,
+    ) -> dict[str, np.ndarray]:
         """Many predict(+update) steps in one C call (``mca_cs3_run``).
 
         ``dt_s`` (n,); the others (n, 3); ``mask`` 0 on every axis means predict only.
@@ -191,8 +227,15 @@ class Cs3:
         """
         dt = np.ascontiguousarray(dt_s, np.float32).reshape(-1)
         n = len(dt)
-        arrs = [_as_f32(a, (n, 3), name) for a, name in ((pos_ned_m, "pos_ned_m"), (vel_ned_mps, "vel_ned_mps"),
-                                                          (r_pos_m2, "r_pos_m2"), (r_vel_m2ps2, "r_vel_m2ps2"))]
+        arrs = [
+            _as_f32(a, (n, 3), name)
+            for a, name in (
+                (pos_ned_m, "pos_ned_m"),
+                (vel_ned_mps, "vel_ned_mps"),
+                (r_pos_m2, "r_pos_m2"),
+                (r_vel_m2ps2, "r_vel_m2ps2"),
+            )
+        ]
         m = np.ascontiguousarray(mask, np.uint8)
         if m.shape != (n, 3):
             raise errors.BadArgError(f"mask: expected shape {(n, 3)}, got {m.shape}")
@@ -200,10 +243,21 @@ class Cs3:
         p = np.zeros((n, 3, 5, 5), np.float32) if want_p else None
         t = np.zeros((n, 3), np.float32)
         st = np.zeros(n, np.uint8)
-        check(lib.mca_cs3_run(self._cs, n, _fptr(dt), *(_fptr(a) for a in arrs),
-                              ffi.cast("uint8_t *", ffi.from_buffer(m)), self._ws, _fptr(x),
-                              _fptr(p) if p is not None else ffi.NULL, _fptr(t),
-                              ffi.cast("uint8_t *", ffi.from_buffer(st))), "mca_cs3_run")
+        check(
+            lib.mca_cs3_run(
+                self._cs,
+                n,
+                _fptr(dt),
+                *(_fptr(a) for a in arrs),
+                ffi.cast("uint8_t *", ffi.from_buffer(m)),
+                self._ws,
+                _fptr(x),
+                _fptr(p) if p is not None else ffi.NULL,
+                _fptr(t),
+                ffi.cast("uint8_t *", ffi.from_buffer(st)),
+            ),
+            "mca_cs3_run",
+        )
         out = {"x": x, "T": t, "status": st}
         if p is not None:
             out["P"] = p
@@ -227,6 +281,7 @@ class Cs3:
 
 # ---------------------------------------------------------------- geodesy
 
+
 def geo_to_ned(home: tuple[int, int, int], lat_e7: Any, lon_e7: Any, alt_mm: Any) -> np.ndarray:
     """NED (float32 m) of integer geodetic points relative to an integer home (C core, ALGORITHMS.md 6)."""
     h = ffi.new("mca_geo_home_t *")
@@ -235,8 +290,10 @@ def geo_to_ned(home: tuple[int, int, int], lat_e7: Any, lon_e7: Any, alt_mm: Any
     out = np.zeros((len(lat), 3), np.float32)
     ned = ffi.new("float[3]")
     for k in range(len(lat)):
-        check(lib.mca_geo_to_ned(h, int(lat[k]), int(lon[k]), int(alt[k]), ned),
-              f"mca_geo_to_ned({lat[k]}, {lon[k]}, {alt[k]})")
+        check(
+            lib.mca_geo_to_ned(h, int(lat[k]), int(lon[k]), int(alt[k]), ned),
+            f"mca_geo_to_ned({lat[k]}, {lon[k]}, {alt[k]})",
+        )
         out[k] = list(ned)
     return out
 
@@ -255,9 +312,13 @@ PRESETS = {
 }
 
 FLAG_BITS = {
-    "aligned": lib.MCA_FLAG_ALIGNED, "home_set": lib.MCA_FLAG_HOME_SET, "gps_lost": lib.MCA_FLAG_GPS_LOST,
-    "yaw_unobserved": lib.MCA_FLAG_YAW_UNOBSERVED, "grav_skipped": lib.MCA_FLAG_GRAV_SKIPPED,
-    "saturated": lib.MCA_FLAG_SATURATED, "hist_miss": lib.MCA_FLAG_HIST_MISS,
+    "aligned": lib.MCA_FLAG_ALIGNED,
+    "home_set": lib.MCA_FLAG_HOME_SET,
+    "gps_lost": lib.MCA_FLAG_GPS_LOST,
+    "yaw_unobserved": lib.MCA_FLAG_YAW_UNOBSERVED,
+    "grav_skipped": lib.MCA_FLAG_GRAV_SKIPPED,
+    "saturated": lib.MCA_FLAG_SATURATED,
+    "hist_miss": lib.MCA_FLAG_HIST_MISS,
 }
 
 IMU_C_DTYPE = struct_dtype("mca_imu_sample_t")
@@ -297,9 +358,11 @@ def gnss_to_c(gnss: np.ndarray) -> np.ndarray:
     fix["v_acc_m"] = gnss["v_acc_m"]
     fix["s_acc_mps"] = gnss["s_acc_mps"]
     fl = gnss["flags"]
-    fix["flags"] = (np.where(fl & GNSS_HAS_VEL_NE, lib.MCA_FIX_VEL_NE, 0)
-                    | np.where(fl & GNSS_HAS_VEL_D, lib.MCA_FIX_VEL_D, 0)
-                    | np.where(fl & GNSS_HAS_ALT, lib.MCA_FIX_ALT, 0))
+    fix["flags"] = (
+        np.where(fl & GNSS_HAS_VEL_NE, lib.MCA_FIX_VEL_NE, 0)
+        | np.where(fl & GNSS_HAS_VEL_D, lib.MCA_FIX_VEL_D, 0)
+        | np.where(fl & GNSS_HAS_ALT, lib.MCA_FIX_ALT, 0)
+    )
     fix["fix_type"] = gnss["fix_type"]
     ev["fix"] = fix
     return ev
@@ -321,9 +384,19 @@ class Nav:
         a = _as_f32(accel_b_mps2, (3,), "accel_b_mps2")
         check(lib.mca_nav_imu(self._nav, int(t_us), _fptr(g), _fptr(a)), f"mca_nav_imu(t_us={t_us})")
 
-    def gps(self, t_us: int, lat_e7: int, lon_e7: int, alt_mm: int | None = None,
-            vel_ned_mps: Any = None, h_acc_m: float = float("nan"), v_acc_m: float = float("nan"),
-            s_acc_mps: float = float("nan"), fix_type: int = 3, vel_d: bool = True) -> None:
+    def gps(
+        self,
+        t_us: int,
+        lat_e7: int,
+        lon_e7: int,
+        alt_mm: int | None = None,
+        vel_ned_mps: Any = None,
+        h_acc_m: float = float("nan"),
+        v_acc_m: float = float("nan"),
+        s_acc_mps: float = float("nan"),
+        fix_type: int = 3,
+        vel_d: bool = True,
+    ) -> None:
         f = self._fix
         f.t_us, f.lat_e7, f.lon_e7 = int(t_us), int(lat_e7), int(lon_e7)
         f.alt_mm = 0 if alt_mm is None else int(alt_mm)
@@ -353,7 +426,9 @@ class Nav:
         mag = np.zeros(len(rec.mag), MAG_C_DTYPE)
         mag["t_us"] = rec.mag["t_us"]
         mag["mag_b"] = rec.mag["mag_b"]
-        if np.any(np.diff(imu["t_us"].astype(np.int64)) < 0) or np.any(np.diff(gps["t_rx_us"].astype(np.int64)) < 0):
+        if np.any(np.diff(imu["t_us"].astype(np.int64)) < 0) or np.any(
+            np.diff(gps["t_rx_us"].astype(np.int64)) < 0
+        ):
             raise errors.BadArgError(f"{rec.name}: samples must be sorted by time")
         out = np.zeros(len(imu), OUT_C_DTYPE)
         st_i = np.zeros(len(imu), np.uint8)
@@ -363,10 +438,22 @@ class Nav:
         def ptr(ctype: str, a: np.ndarray) -> Any:
             return ffi.cast(ctype, ffi.from_buffer(a)) if len(a) else ffi.NULL
 
-        check(lib.mca_nav_replay(self._nav, ptr("mca_imu_sample_t *", imu), len(imu),
-                                 ptr("mca_gps_event_t *", gps), len(gps), ptr("mca_mag_sample_t *", mag), len(mag),
-                                 ptr("mca_nav_output_t *", out), ptr("uint8_t *", st_i), ptr("uint8_t *", st_g),
-                                 ptr("uint8_t *", st_m)), "mca_nav_replay")
+        check(
+            lib.mca_nav_replay(
+                self._nav,
+                ptr("mca_imu_sample_t *", imu),
+                len(imu),
+                ptr("mca_gps_event_t *", gps),
+                len(gps),
+                ptr("mca_mag_sample_t *", mag),
+                len(mag),
+                ptr("mca_nav_output_t *", out),
+                ptr("uint8_t *", st_i),
+                ptr("uint8_t *", st_g),
+                ptr("uint8_t *", st_m),
+            ),
+            "mca_nav_replay",
+        )
         res = {name: out[name] for name in OUT_C_DTYPE.names}
         res.update(imu_status=st_i, gps_status=st_g, mag_status=st_m)
         return res
@@ -382,13 +469,19 @@ def replay(rec: Recording, cfg: Any = None) -> dict[str, np.ndarray]:
 # rest of this module is unchanged by it.
 
 ROBUST_MODES: dict[str, int] = {
-    "plain": lib.MCA_ROBUST_PLAIN, "fta": lib.MCA_ROBUST_FTA, "akf": lib.MCA_ROBUST_AKF,
-    "fuzzy": lib.MCA_ROBUST_FUZZY, "igg3": lib.MCA_ROBUST_IGG3,
+    "plain": lib.MCA_ROBUST_PLAIN,
+    "fta": lib.MCA_ROBUST_FTA,
+    "akf": lib.MCA_ROBUST_AKF,
+    "fuzzy": lib.MCA_ROBUST_FUZZY,
+    "igg3": lib.MCA_ROBUST_IGG3,
 }
 """Mode names of ``robust_config`` and the golden model, with their C values."""
 
 CHI2_LEVELS: dict[float, int] = {
-    1e-4: lib.MCA_CHI2_1E4, 1e-2: lib.MCA_CHI2_1E2, 5e-3: lib.MCA_CHI2_5E3, 2.5e-2: lib.MCA_CHI2_2P5E2,
+    1e-4: lib.MCA_CHI2_1E4,
+    1e-2: lib.MCA_CHI2_1E2,
+    5e-3: lib.MCA_CHI2_5E3,
+    2.5e-2: lib.MCA_CHI2_2P5E2,
 }
 """Upper-tail levels a of the C chi-square table, with their ``mca_chi2_level_t`` values."""
 
@@ -467,8 +560,15 @@ def _report_dict(rep: Any) -> dict[str, Any]:
     }
 
 
-def kf_update(x: Any, P: Any, H: Any, z: Any, R: Any, cfg: Any = None,  # noqa: N803 - P, H, R as in the text
-              state: RobustFilterState | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+def kf_update(
+    x: Any,
+    P: Any,
+    H: Any,
+    z: Any,
+    R: Any,
+    cfg: Any = None,  # noqa: N803 - P, H, R as in the text
+    state: RobustFilterState | None = None,
+) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """One ``mca_kf_update`` on float32 copies: ``x`` (n), ``P`` (n x n), ``H`` (m x n, or (n,) for
     m = 1), ``z`` (m), ``R`` (m x m, or (m,) for a diagonal). ``cfg`` from :func:`robust_config`
     (None: plain); ``state`` a :class:`RobustFilterState`, required by 'akf' and 'fuzzy', updated
@@ -491,9 +591,20 @@ def kf_update(x: Any, P: Any, H: Any, z: Any, R: Any, cfg: Any = None,  # noqa: 
     ws_len = int(lib.mca_kf_ws_len(n, m))
     ws = np.empty(max(ws_len, 1), np.float32)
     rep = ffi.new("mca_update_report_t *")
-    st = lib.mca_kf_update(_fptr(xa), _fptr(pa), n, _fptr(ha), _fptr(za), _fptr(ra), m,
-                           cfg if cfg is not None else ffi.NULL, state.c if state is not None else ffi.NULL,
-                           _fptr(ws), ws_len, rep)
+    st = lib.mca_kf_update(
+        _fptr(xa),
+        _fptr(pa),
+        n,
+        _fptr(ha),
+        _fptr(za),
+        _fptr(ra),
+        m,
+        cfg if cfg is not None else ffi.NULL,
+        state.c if state is not None else ffi.NULL,
+        _fptr(ws),
+        ws_len,
+        rep,
+    )
     check(st, f"mca_kf_update(n={n}, m={m}, mode={mode})")
     return xa, pa.reshape(n, n), _report_dict(rep)
 
@@ -507,3 +618,160 @@ def chi2_quantile(m: int, level: float) -> float:
     if not 1 <= int(m) <= lib.MCA_MEAS_MAX:
         raise errors.BadArgError(f"chi2 degrees of freedom {m!r} not in 1..{lib.MCA_MEAS_MAX}")
     return float(lib.mca_chi2_quantile(int(m), CHI2_LEVELS[level]))
+
+
+# ================================================================ loosely-coupled INS
+# (docs/ALGORITHMS.md 10; the C's mca_ins.h). Section owned by the INS work; the rest of this
+# module is unchanged by it.
+
+INS_PRESETS = {
+    "ground": lib.mca_ins_config_default,
+    "fixedwing": lib.mca_ins_config_fixedwing,
+    "multirotor": lib.mca_ins_config_multirotor,
+}
+
+INS_FLAG_BITS = {
+    "aligned": lib.MCA_INS_FLAG_ALIGNED,
+    "home_set": lib.MCA_INS_FLAG_HOME_SET,
+    "nav": lib.MCA_INS_FLAG_NAV,
+    "yaw_aligned": lib.MCA_INS_FLAG_YAW_ALIGNED,
+    "gps_lost": lib.MCA_INS_FLAG_GPS_LOST,
+    "hist_miss": lib.MCA_INS_FLAG_HIST_MISS,
+    "rejected": lib.MCA_INS_FLAG_REJECTED,
+    "saturated": lib.MCA_INS_FLAG_SATURATED,
+}
+
+INS_OUT_C_DTYPE = struct_dtype("mca_ins_output_t")
+
+
+def ins_config(preset: str = "ground", **overrides: Any) -> Any:
+    """A checked ``mca_ins_config_t *`` from a preset ('ground', 'fixedwing', 'multirotor') and field
+    overrides (``gyro_noise_rps=1e-3``, ``robust={'mode': 1}`` or ``'robust.mode'``; the robust mode may
+    also be given by name, ``robust='fta'``)."""
+    if preset not in INS_PRESETS:
+        raise errors.BadConfigError(f"unknown INS preset {preset!r}; known: {', '.join(INS_PRESETS)}")
+    cfg = ffi.new("mca_ins_config_t *")
+    INS_PRESETS[preset](cfg)
+    over = dict(overrides)
+    if isinstance(over.get("robust"), (str, int)):
+        over["robust.mode"] = _robust_mode(over.pop("robust"))
+    _apply(cfg, over, "mca_ins_config_t")
+    check(lib.mca_ins_config_check(cfg), "mca_ins_config_t")
+    return cfg
+
+
+class Ins:
+    """The C loosely-coupled INS, one sample at a time or a whole recording."""
+
+    def __init__(self, cfg: Any = None) -> None:
+        self.cfg = cfg if cfg is not None else ins_config()
+        self._ins = ffi.new("mca_ins_t *")
+        self._out = ffi.new("mca_ins_output_t *")
+        self._fix = ffi.new("mca_gps_fix_t *")
+        check(lib.mca_ins_init(self._ins, self.cfg), "mca_ins_init")
+
+    def imu(self, t_us: int, gyro_b_rps: Any, accel_b_mps2: Any) -> None:
+        g = _as_f32(gyro_b_rps, (3,), "gyro_b_rps")
+        a = _as_f32(accel_b_mps2, (3,), "accel_b_mps2")
+        check(lib.mca_ins_imu(self._ins, int(t_us), _fptr(g), _fptr(a)), f"mca_ins_imu(t_us={t_us})")
+
+    def imu_delta(self, t_us: int, dtheta_b_rad: Any, dv_b_mps: Any) -> None:
+        g = _as_f32(dtheta_b_rad, (3,), "dtheta_b_rad")
+        a = _as_f32(dv_b_mps, (3,), "dv_b_mps")
+        check(
+            lib.mca_ins_imu_delta(self._ins, int(t_us), _fptr(g), _fptr(a)), f"mca_ins_imu_delta(t_us={t_us})"
+        )
+
+    def gps(
+        self,
+        t_us: int,
+        lat_e7: int,
+        lon_e7: int,
+        alt_mm: int | None = None,
+        vel_ned_mps: Any = None,
+        h_acc_m: float = float("nan"),
+        v_acc_m: float = float("nan"),
+        s_acc_mps: float = float("nan"),
+        fix_type: int = 3,
+        vel_d: bool = True,
+    ) -> None:
+        f = self._fix
+        f.t_us, f.lat_e7, f.lon_e7 = int(t_us), int(lat_e7), int(lon_e7)
+        f.alt_mm = 0 if alt_mm is None else int(alt_mm)
+        flags = 0 if alt_mm is None else lib.MCA_FIX_ALT
+        if vel_ned_mps is not None:
+            f.vel_ned_mps = [float(v) for v in vel_ned_mps]
+            flags |= lib.MCA_FIX_VEL_NE | (lib.MCA_FIX_VEL_D if vel_d else 0)
+        f.h_acc_m, f.v_acc_m, f.s_acc_mps = h_acc_m, v_acc_m, s_acc_mps
+        f.flags, f.fix_type = flags, fix_type
+        check(lib.mca_ins_gps(self._ins, f), f"mca_ins_gps(t_us={t_us}, lat_e7={lat_e7}, lon_e7={lon_e7})")
+
+    def mag(self, t_us: int, mag_b: Any) -> None:
+        m = _as_f32(mag_b, (3,), "mag_b")
+        check(lib.mca_ins_mag(self._ins, int(t_us), _fptr(m)), f"mca_ins_mag(t_us={t_us})")
+
+    def output(self) -> dict[str, Any]:
+        lib.mca_ins_output(self._ins, self._out)
+        return _struct_to_dict(self._out[0])
+
+    @property
+    def P(self) -> np.ndarray:  # noqa: N802 - the covariance is P in every text
+        """Error-state covariance (15 x 15): dr, dv, phi, b_g, b_a."""
+        return np.array(list(self._ins.p), np.float32).reshape(15, 15)
+
+    def error_model(self, f_n_mps2: Any) -> np.ndarray:
+        """The continuous error-state matrix F (15 x 15) of the current state (ALGORITHMS.md 10)."""
+        fn = _as_f32(f_n_mps2, (3,), "f_n_mps2")
+        out = np.zeros(225, np.float32)
+        check(lib.mca_ins_error_model(self._ins, _fptr(fn), _fptr(out)), "mca_ins_error_model")
+        return out.reshape(15, 15)
+
+    def replay(self, rec: Recording) -> dict[str, np.ndarray]:
+        """Run a whole recording (ALGORITHMS.md 9) in one C call; one output row per IMU sample.
+
+        Returns every ``mca_ins_output_t`` field as an array (``t_us``, ``q_nb``, ``euler_rad``,
+        ``pos_ned_m``, ``vel_ned_mps``, ``gyro_bias_rps``, ``accel_bias_mps2``, ``p_diag``, ``gps_t``,
+        ``flags``, counters...), ``biases`` (n, 6: gyro then accel) and the per-event statuses
+        ``imu_status``, ``gps_status``, ``mag_status`` (not raised)."""
+        imu = np.zeros(len(rec.imu), IMU_C_DTYPE)
+        imu["t_us"] = rec.imu["t_us"]
+        imu["gyro_b_rps"] = rec.imu["gyro_rps"]
+        imu["accel_b_mps2"] = rec.imu["accel_mps2"]
+        gps = gnss_to_c(rec.gnss)
+        mag = np.zeros(len(rec.mag), MAG_C_DTYPE)
+        mag["t_us"] = rec.mag["t_us"]
+        mag["mag_b"] = rec.mag["mag_b"]
+        for name, t in (("imu", imu["t_us"]), ("gnss", gps["t_rx_us"]), ("mag", mag["t_us"])):
+            if np.any(np.diff(t.astype(np.int64)) < 0):
+                raise errors.BadArgError(f"{rec.name}: {name} samples must be sorted by time")
+        out = np.zeros(len(imu), INS_OUT_C_DTYPE)
+        st_i = np.zeros(len(imu), np.uint8)
+        st_g = np.zeros(len(gps), np.uint8)
+        st_m = np.zeros(len(mag), np.uint8)
+
+        def ptr(ctype: str, a: np.ndarray) -> Any:
+            return ffi.cast(ctype, ffi.from_buffer(a)) if len(a) else ffi.NULL
+
+        st = lib.mca_ins_replay(
+            self._ins,
+            ptr("mca_imu_sample_t *", imu),
+            len(imu),
+            ptr("mca_gps_event_t *", gps),
+            len(gps),
+            ptr("mca_mag_sample_t *", mag),
+            len(mag),
+            ptr("mca_ins_output_t *", out),
+            ptr("uint8_t *", st_i),
+            ptr("uint8_t *", st_g),
+            ptr("uint8_t *", st_m),
+        )
+        check(st, "mca_ins_replay")
+        res = {name: out[name] for name in INS_OUT_C_DTYPE.names}
+        res["biases"] = np.concatenate([out["gyro_bias_rps"], out["accel_bias_mps2"]], axis=1)
+        res.update(imu_status=st_i, gps_status=st_g, mag_status=st_m)
+        return res
+
+
+def ins_replay(recording: Recording, cfg: Any = None) -> dict[str, np.ndarray]:
+    """Run a recording through a fresh C INS (``cfg`` from :func:`ins_config`; None: ground defaults)."""
+    return Ins(cfg).replay(recording)

@@ -7,9 +7,8 @@
  * Time is uint64 microseconds on the IMU clock; fixes carry their validity time on it. The
  * position is integer (1e-7 deg, mm) plus float32 metre offsets folded after every change.
  * No function allocates or recurses; every loop is bounded by a compile-time size. Every
- * function that can fail returns a status and, on error, leaves the state unchanged (the
- * exceptions, the time re-anchoring and navigation stop on BAD_DT and a course alignment made by
- * a fix whose update then fails numerically, are documented at the function).
+ * function that can fail returns a status and, on error, leaves the state unchanged (the one
+ * exception, the time re-anchoring and navigation stop on BAD_DT, is documented at the function).
  */
 #ifndef MCA_INS_H
 #define MCA_INS_H
@@ -50,8 +49,9 @@ typedef struct {
     float accel_bias_rw_mps3;   /**< accel bias driving noise density, m/s^3/sqrt(Hz), >= 0 */
     float gyro_bias_tau_s;      /**< gyro bias Gauss-Markov time, 0 random walk, else >= 1 */
     float accel_bias_tau_s;     /**< accel bias Gauss-Markov time, 0 random walk, else >= 1 */
-    float att0_var_rad2;        /**< initial roll/pitch variance, > 0 */
-    float yaw0_var_rad2;        /**< initial yaw variance (and frozen-yaw variance), > 0 */
+    float att0_var_rad2;        /**< initial roll/pitch variance (timeout alignment), > 0 */
+    float att_still_var_rad2;   /**< roll/pitch variance beyond the accel bias after a still levelling, > 0 */
+    float yaw0_var_rad2;        /**< variance of yaw0_rad (yaw source none), > 0 */
     float yaw0_rad;             /**< initial yaw, finite */
     float gyro_bias0_var_rps2;  /**< initial gyro bias variance (timeout alignment), > 0 */
     float gyro_bias_still_var_rps2; /**< initial gyro bias variance after a still-window alignment, > 0 */
@@ -129,9 +129,14 @@ typedef struct {
     float init_w_sum[3];
     uint32_t init_win_us;
     uint32_t init_n;
+    float init_all_f_sum[3];      /**< specific force of every sample before alignment */
+    uint32_t init_all_n;
     float w_last_rps[3];          /**< bias-corrected rate of the newest sample */
+    float f_last_mps2[3];         /**< bias-corrected specific force of the newest sample */
     float yaw_var_align;          /**< variance of the aligning yaw observation */
     float bg0_var;                /**< initial gyro bias variance chosen by the alignment */
+    uint8_t level_still;          /**< the last levelling was from a still window */
+    float fix_speed_mps;          /**< ground speed of the last fix (-1: it had no NE velocity) */
     float g_align_mps2;           /**< gravity used by the still test */
     uint8_t have_imu;
     uint8_t aligned;
@@ -189,9 +194,10 @@ mca_status_t mca_ins_config_check(const mca_ins_config_t *cfg);
 mca_status_t mca_ins_init(mca_ins_t *ins, const mca_ins_config_t *cfg);
 
 /**
- * IMU step with rates (ALGORITHMS.md 10): alignment, attitude-only propagation before the first
- * fix, or mechanization plus, once per cov_dt_s, the covariance propagation (~10^4 multiply-adds)
- * and, once per 20 ms, a history entry (one geodetic conversion).
+ * IMU step with rates (ALGORITHMS.md 10): alignment (and re-levelling while stopped), attitude-
+ * only propagation until navigation starts, or mechanization (~1 400 instructions on the
+ * Cortex-M4F) plus, once per cov_dt_s, the covariance propagation (~82 000 instructions) and,
+ * once per 20 ms, a history entry (one geodetic conversion).
  * @param[in] t_us         sample time, IMU clock
  * @param[in] gyro_b_rps   body rate
  * @param[in] accel_b_mps2 specific force
@@ -209,14 +215,15 @@ mca_status_t mca_ins_imu(mca_ins_t *ins, uint64_t t_us, const float gyro_b_rps[3
 mca_status_t mca_ins_imu_delta(mca_ins_t *ins, uint64_t t_us, const float dtheta_b_rad[3], const float dv_b_mps[3]);
 
 /**
- * GNSS step (ALGORITHMS.md 10): home, navigation start, or the position/velocity update in the
- * configured robust mode against the INS solution at the fix's validity time. Cost: the history
- * search (<= 51 points), two geodetic conversions, one mca_kf_update (n = 15, m <= 6: ~9000
- * multiply-adds), the correction of the state and of the 50 history entries.
+ * GNSS step (ALGORITHMS.md 10): home, navigation start (with the heading known; course over
+ * ground sets it here), or the position/velocity update in the configured robust mode against
+ * the INS solution at the fix's validity time. Cost: the history search (<= 51 points), two
+ * geodetic conversions, one mca_kf_update (n = 15, m <= 6), the correction of the state and of
+ * the 50 history entries: ~62 000 instructions on the Cortex-M4F (m = 6).
  * @return MCA_ERR_NULL; MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE,
  *         MCA_ERR_TIME_BACKWARDS: nothing changed; MCA_ERR_SINGULAR / MCA_ERR_NONFINITE from the
- *         update: not applied (a course yaw alignment made by this fix stays); else MCA_OK
- *         (also for a fix skipped before alignment or on a history miss, and a rejected update).
+ *         update: not applied, nothing changed but n_gps_rej; else MCA_OK (also for a fix skipped before
+ *         alignment, before the heading is known or on a history miss, and a rejected update).
  */
 mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix);
 
