@@ -69,14 +69,21 @@ def main() -> None:
                 g.update(zp[k], zv[k], rp[k], rv[k], mask[k])
 
     t_gold = best_of(golden, 1) * n / n_gold
-    rate = {name: n / t for name, t in (("C batched (one cffi call)", t_batch),
-                                         ("C one cffi call per step", t_call),
-                                         ("golden float64 NumPy", t_gold))}
+    rate = {
+        name: n / t
+        for name, t in (
+            ("C batched (one cffi call)", t_batch),
+            ("C one cffi call per step", t_call),
+            ("golden float64 NumPy", t_gold),
+        )
+    }
     print(f"CS filter, {n} steps (3 axes, predict at 100 Hz, update at 5 Hz)")
     for name, r in rate.items():
         print(f"  {name:28s} {r:12,.0f} steps/s  ({1e6 / r:8.2f} us/step)")
-    print(f"  cffi call overhead per step:  {1e6 * (t_call - t_batch) / n:8.2f} us "
-          f"(per-call / batched = {t_call / t_batch:.1f}x)")
+    print(
+        f"  cffi call overhead per step:  {1e6 * (t_call - t_batch) / n:8.2f} us "
+        f"(per-call / batched = {t_call / t_batch:.1f}x)"
+    )
     print(f"  C batched / golden:           {t_gold / t_batch:8.1f}x")
     print(f"  C per call / golden:          {t_gold / t_call:8.1f}x")
 

@@ -31,7 +31,10 @@ def preprocess(cc: str, include: Path) -> str:
             Path(fake, h).write_text("")
         out = subprocess.run(
             [cc, "-E", "-P", "-nostdinc", "-I", fake, "-I", str(include), "-x", "c", "-"],
-            input=f'#include "{UMBRELLA}"\n', capture_output=True, text=True, check=True,
+            input=f'#include "{UMBRELLA}"\n',
+            capture_output=True,
+            text=True,
+            check=True,
         ).stdout
     return out
 

@@ -31,13 +31,20 @@ def poly(k: int, coeffs: dict[int, Fraction]) -> Fraction:
 
 
 def g11(k: int) -> Fraction:  # 1 - e^2 + 2x + 2x^3/3 - 2x^2 - 4x e
-    return (poly(k, {0: Fraction(1), 1: Fraction(2), 2: Fraction(-2), 3: Fraction(2, 3)})
-            - exp_coef(-2, k) - 4 * x_exp_coef(-1, k))
+    return (
+        poly(k, {0: Fraction(1), 1: Fraction(2), 2: Fraction(-2), 3: Fraction(2, 3)})
+        - exp_coef(-2, k)
+        - 4 * x_exp_coef(-1, k)
+    )
 
 
 def g12(k: int) -> Fraction:  # e^2 + 1 - 2e + 2x e - 2x + x^2
-    return (exp_coef(-2, k) + poly(k, {0: Fraction(1), 1: Fraction(-2), 2: Fraction(1)})
-            - 2 * exp_coef(-1, k) + 2 * x_exp_coef(-1, k))
+    return (
+        exp_coef(-2, k)
+        + poly(k, {0: Fraction(1), 1: Fraction(-2), 2: Fraction(1)})
+        - 2 * exp_coef(-1, k)
+        + 2 * x_exp_coef(-1, k)
+    )
 
 
 def g13(k: int) -> Fraction:  # 1 - e^2 - 2x e

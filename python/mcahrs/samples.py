@@ -15,8 +15,8 @@ clear, never a made-up value.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
 import numpy as np
 
@@ -141,8 +141,20 @@ def gnss_array(fixes: Iterable[GnssFix]) -> np.ndarray:
     out = np.zeros(len(s), GNSS_DTYPE)
     for i, f in enumerate(s):
         out[i] = (
-            f.t_us, f.t_rx_us, f.lat_e7, f.lon_e7, f.alt_mm, f.vel_ned_mps, f.speed_mps,
-            f.course_rad, f.h_acc_m, f.v_acc_m, f.s_acc_mps, f.fix_type, f.num_sv, f.flags,
+            f.t_us,
+            f.t_rx_us,
+            f.lat_e7,
+            f.lon_e7,
+            f.alt_mm,
+            f.vel_ned_mps,
+            f.speed_mps,
+            f.course_rad,
+            f.h_acc_m,
+            f.v_acc_m,
+            f.s_acc_mps,
+            f.fix_type,
+            f.num_sv,
+            f.flags,
         )
     return out
 

@@ -18,6 +18,7 @@ IMU_DT = 0.01  # predict step of the scripted runs (100 Hz)
 
 # ------------------------------------------------------------------ scripted trajectories
 
+
 def accel_profile(name: str, t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """True NED acceleration (n, 3) of a scripted trajectory."""
     a = np.zeros((len(t), 3))
@@ -51,8 +52,9 @@ def truth(name: str, n: int, dt: float, rng: np.random.Generator, v0: tuple = (0
     return t, p, v, a
 
 
-def gps_inputs(p, v, every: int, rng: np.random.Generator, sp: float = 2.5, sv: float = 0.1,
-               vel_d: bool = False):
+def gps_inputs(
+    p, v, every: int, rng: np.random.Generator, sp: float = 2.5, sv: float = 0.1, vel_d: bool = False
+):
     """GPS measurements at every `every`-th step; masks; D velocity only if vel_d (NMEA has none)."""
     n = len(p)
     mask = np.zeros((n, 3), np.uint8)
@@ -67,8 +69,10 @@ def gps_inputs(p, v, every: int, rng: np.random.Generator, sp: float = 2.5, sv: 
 
 
 def run_golden(dt, zp, zv, rp, rv, mask, v0=(0.0, 0.0, 0.0), adaptive=False):
-    g = gcs.Cs3(replace(gcs.CsAxisConfig.horizontal(), adaptive=adaptive),
-                replace(gcs.CsAxisConfig.vertical(), adaptive=adaptive))
+    g = gcs.Cs3(
+        replace(gcs.CsAxisConfig.horizontal(), adaptive=adaptive),
+        replace(gcs.CsAxisConfig.vertical(), adaptive=adaptive),
+    )
     g.init(v0=v0)
     xs = np.zeros((len(dt), 3, 5))
     ps = np.zeros((len(dt), 3, 5, 5))
@@ -126,13 +130,18 @@ def test_cs_c_matches_golden_step_by_step(name: str) -> None:
         zp, zv, rp, rv, mask = gps_inputs(p, v, 20, rng)
     # the default is fixed sigma_a; turns and random inputs run the adaptive (CS) variance
     adaptive = name in ("turns", "random")
-    c = core.Cs3(core.cs_config(False, adaptive=int(adaptive)), core.cs_config(True, adaptive=int(adaptive)),
-                 vel_ned_mps=v0).run(dt, zp, zv, rp, rv, mask)
+    c = core.Cs3(
+        core.cs_config(False, adaptive=int(adaptive)),
+        core.cs_config(True, adaptive=int(adaptive)),
+        vel_ned_mps=v0,
+    ).run(dt, zp, zv, rp, rv, mask)
     assert np.all(c["status"] == 0)
     gx, gp, gt = run_golden(dt, zp, zv, rp, rv, mask, v0, adaptive)
     dx, dp = normalised_gaps(c, {"x": gx, "P": gp})
-    print(f"{name}: max |dx|/sigma per state = {' '.join(f'{v:.1e}' for v in dx)}, "
-          f"max |dP|/sqrt(PiiPjj) = {dp:.2e}")
+    print(
+        f"{name}: max |dx|/sigma per state = {' '.join(f'{v:.1e}' for v in dx)}, "
+        f"max |dP|/sqrt(PiiPjj) = {dp:.2e}"
+    )
     if name == "random":
         # Random measurements are inconsistent with the model on purpose: innovations reach
         # ~20 sigma, so the gain's float32 rounding (~1e-4 relative) moves the state by
@@ -153,6 +162,7 @@ def test_cs_c_matches_golden_step_by_step(name: str) -> None:
 
 
 # ------------------------------------------------------------------ Q against Van Loan
+
 
 def van_loan_singer(alpha: float, T: float, s2: float) -> np.ndarray:
     """Singer Q by Van Loan's method: expm of [[-A, G Qc G^T], [0, A^T]] T (float64)."""
@@ -214,6 +224,7 @@ def test_c_transition_matches_golden_and_expm() -> None:
 
 # ------------------------------------------------------------------ physics
 
+
 def ramp_box(t: np.ndarray, t0: float, t1: float, a: float, ramp: float) -> np.ndarray:
     """a between t0 and t1 with raised-cosine ramps of `ramp` s (a jerk-limited maneuver)."""
     up = np.clip((t - t0) / ramp, 0, 1)
@@ -229,7 +240,9 @@ def car_accel(t: np.ndarray) -> np.ndarray:
     return np.stack([ax, ay, np.zeros_like(t)], axis=1)
 
 
-def aligned_error_var(t_est: np.ndarray, est: np.ndarray, t: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+def aligned_error_var(
+    t_est: np.ndarray, est: np.ndarray, t: np.ndarray, ref: np.ndarray
+) -> tuple[float, float]:
     """(lag, variance) of est - ref(t - lag) minimised over lag: the cross-correlation lag."""
     lags = np.arange(0.0, 3.0, 0.02)
     errs = [np.var(est - np.interp(t_est - lag, t, ref)) for lag in lags]
@@ -264,9 +277,11 @@ def test_cs_accel_beats_velocity_differencing(gps_hz: int) -> None:
         lag_d, var_d = aligned_error_var(t[fix], a_diff, t, a[:, 0])
         raw_cs, raw_d = np.var(out["x"][fix, 0, 2] - a[fix, 0]), np.var(a_diff - a[fix, 0])
         rows.append((var_cs, var_d))
-        print(f"GPS {gps_hz} Hz seed {seed}: accel error variance (lag-aligned) CS {var_cs:.4f} at lag "
-              f"{lag_cs:.2f} s, differencing {var_d:.4f} at lag {lag_d:.2f} s, ratio {var_d / var_cs:.1f}; "
-              f"unaligned CS {raw_cs:.4f}, differencing {raw_d:.4f} (paper: 0.0165 vs 0.2075, lag ~1.2 s)")
+        print(
+            f"GPS {gps_hz} Hz seed {seed}: accel error variance (lag-aligned) CS {var_cs:.4f} at lag "
+            f"{lag_cs:.2f} s, differencing {var_d:.4f} at lag {lag_d:.2f} s, ratio {var_d / var_cs:.1f}; "
+            f"unaligned CS {raw_cs:.4f}, differencing {raw_d:.4f} (paper: 0.0165 vs 0.2075, lag ~1.2 s)"
+        )
     var_cs = float(np.mean([r[0] for r in rows]))
     var_d = float(np.mean([r[1] for r in rows]))
     if gps_hz == 5:
@@ -281,6 +296,7 @@ def test_cs_accel_beats_velocity_differencing(gps_hz: int) -> None:
 
 
 # ------------------------------------------------------------------ bad input
+
 
 def test_bad_input_raises_and_leaves_state() -> None:
     c = core.Cs3()

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pymap3d
 import pytest
+from mcahrs._mcahrs_cffi import ffi, lib
 
 from mcahrs import core, errors
-from mcahrs._mcahrs_cffi import ffi, lib
 from mcahrs.golden import geo as ggeo
 from mcahrs.samples import Recording
 from mcahrs.sim import scenario
@@ -19,8 +19,9 @@ from mcahrs.sim import scenario
 # ------------------------------------------------------------------ geodesy
 
 
-@pytest.mark.parametrize("home_deg", [(0.0, 0.0), (30.5, 114.3), (59.9, 10.7), (80.0, -45.0), (-45.0, 170.0),
-                                      (10.0, 179.95)])
+@pytest.mark.parametrize(
+    "home_deg", [(0.0, 0.0), (30.5, 114.3), (59.9, 10.7), (80.0, -45.0), (-45.0, 170.0), (10.0, 179.95)]
+)
 def test_geo_to_ned_matches_pymap3d_to_millimetres_over_20km(home_deg: tuple[float, float]) -> None:
     rng = np.random.default_rng(int(abs(home_deg[0]) * 10 + abs(home_deg[1])))
     lat0, lon0, h0 = home_deg[0], home_deg[1], 123.456
@@ -34,11 +35,17 @@ def test_geo_to_ned_matches_pymap3d_to_millimetres_over_20km(home_deg: tuple[flo
     lon_e7 = np.where(lon_e7 > 1_800_000_000, lon_e7 - 3_600_000_000, lon_e7)
     alt_mm = np.round(alt * 1e3).astype(np.int64)
     c = core.geo_to_ned(home, lat_e7, lon_e7, alt_mm).astype(np.float64)
-    ref = np.stack(pymap3d.geodetic2ned(lat_e7 * 1e-7, lon_e7 * 1e-7, alt_mm * 1e-3, home[0] * 1e-7,
-                                        home[1] * 1e-7, home[2] * 1e-3), axis=1)
+    ref = np.stack(
+        pymap3d.geodetic2ned(
+            lat_e7 * 1e-7, lon_e7 * 1e-7, alt_mm * 1e-3, home[0] * 1e-7, home[1] * 1e-7, home[2] * 1e-3
+        ),
+        axis=1,
+    )
     err = np.linalg.norm(c - ref, axis=1)
     dist = np.linalg.norm(ref, axis=1)
-    print(f"home {home_deg}: max |C - pymap3d| = {err.max() * 1e3:.2f} mm over up to {dist.max() / 1e3:.1f} km")
+    print(
+        f"home {home_deg}: max |C - pymap3d| = {err.max() * 1e3:.2f} mm over up to {dist.max() / 1e3:.1f} km"
+    )
     # Each NED term is of the size of the displacement and goes through a handful of float32
     # roundings (6e-8 each; the result's own ulp is 2 mm at 20 km): 3e-7 of the distance
     # (6 mm at 20 km) bounds them. A formula error (flat earth: metres at 20 km) is far above.
@@ -73,8 +80,11 @@ def state_bytes(nav: core.Nav) -> bytes:
 
 def state_finite(nav: core.Nav) -> bool:
     s = nav._nav
-    arrays = [s.att.q_nb, s.att.bias_rps, s.att.p] + [s.cs.axis[i].x for i in range(3)] + \
-             [s.cs.axis[i].p for i in range(3)]
+    arrays = (
+        [s.att.q_nb, s.att.bias_rps, s.att.p]
+        + [s.cs.axis[i].x for i in range(3)]
+        + [s.cs.axis[i].p for i in range(3)]
+    )
     return all(math.isfinite(v) for a in arrays for v in a)
 
 
@@ -241,8 +251,10 @@ def test_two_hour_flight_at_400hz_stays_finite_spd_and_learns_the_gyro_bias() ->
             worst_rp = max(worst_rp, float(err.max()))
     b_est = np.array(list(nav._nav.att.bias_rps))
     b_true = truth.gyro_bias_rps[-1]
-    print(f"2 h: worst roll/pitch error after the first minute {worst_rp:.2f} deg; gyro bias "
-          f"estimate {np.degrees(b_est)} deg/s, truth {np.degrees(b_true)} deg/s")
+    print(
+        f"2 h: worst roll/pitch error after the first minute {worst_rp:.2f} deg; gyro bias "
+        f"estimate {np.degrees(b_est)} deg/s, truth {np.degrees(b_true)} deg/s"
+    )
     # turn-on bias is 0.3 deg/s (1 sigma) and wanders by the rate random walk (1e-5 rad/s/sqrt(s)).
     # The accelerometer bias (0.05 m/s^2 = 0.3 deg of tilt) is not a state: seen through the
     # gravity observation while turning, it leaks into the gyro bias estimate at ~0.02 deg/s
@@ -264,7 +276,10 @@ def test_compensation_cuts_car_pitch_error_at_least_5x() -> None:
             ok = (out["flags"] & core.FLAG_BITS["aligned"]) > 0
             rms[mode] = np.sqrt(np.mean(np.degrees(out["euler_rad"][ok, 1] - s.truth.euler_rad[ok, 1]) ** 2))
         ratios.append(rms[0] / rms[1])
-        print(f"car seed {seed}: pitch RMS off {rms[0]:.2f} deg, MCAHRS {rms[1]:.2f} deg, {rms[0] / rms[1]:.1f}x")
+        print(
+            f"car seed {seed}: pitch RMS off {rms[0]:.2f} deg, MCAHRS {rms[1]:.2f} deg, "
+            f"{rms[0] / rms[1]:.1f}x"
+        )
     assert min(ratios) >= 5.0
 
 
