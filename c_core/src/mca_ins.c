@@ -757,11 +757,6 @@ mca_status_t mca_ins_imu_delta(mca_ins_t *ins, uint64_t t_us, const float dth[3]
 
 /* ------------------------------------------------------------------------ GNSS */
 
-static float sigma_or(float s, float dflt)
-{
-    return (isfinite(s) && s > 0.0f) ? s : dflt;
-}
-
 /* Start of navigation (ALGORITHMS.md 10, Initial alignment). */
 static void start_nav(mca_ins_t *ins, const mca_gps_fix_t *fix, const float vel[3], uint8_t vmask, float h_acc,
                       float v_acc, float s_acc)
@@ -922,28 +917,20 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
     if (ins == NULL || fix == NULL) {
         return MCA_ERR_NULL;
     }
-    if (fix->fix_type < 2u) {
-        return MCA_ERR_BAD_ARG;
-    }
-    const int has_alt = (fix->flags & MCA_FIX_ALT) != 0u;
-    const int has_vne = (fix->flags & MCA_FIX_VEL_NE) != 0u;
-    const int has_vd = (fix->flags & MCA_FIX_VEL_D) != 0u;
-    if (mca_geo_check(fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0) != MCA_OK) {
-        return MCA_ERR_RANGE;
-    }
-    if ((has_vne && (!isfinite(fix->vel_ned_mps[0]) || !isfinite(fix->vel_ned_mps[1]))) ||
-        (has_vd && !isfinite(fix->vel_ned_mps[2]))) {
-        return MCA_ERR_NONFINITE;
+    mca_fix_view_t fv; /* the same checks and defaults as the navigation filter */
+    const mca_status_t sf =
+        mca_gps_fix_read(fix, ins->cfg.gps_pos_sigma_m, ins->cfg.gps_alt_sigma_m, ins->cfg.gps_vel_sigma_mps, &fv);
+    if (sf != MCA_OK) {
+        return sf;
     }
     if (ins->have_fix && fix->t_us <= ins->t_lastfix_us) {
         return MCA_ERR_TIME_BACKWARDS;
     }
-    const float vel[3] = {has_vne ? fix->vel_ned_mps[0] : 0.0f, has_vne ? fix->vel_ned_mps[1] : 0.0f,
-                          has_vd ? fix->vel_ned_mps[2] : 0.0f};
-    const uint8_t vmask = (uint8_t)((has_vne ? 3u : 0u) | (has_vd ? 4u : 0u));
-    const float h_acc = sigma_or(fix->h_acc_m, ins->cfg.gps_pos_sigma_m);
-    const float v_acc = sigma_or(fix->v_acc_m, ins->cfg.gps_alt_sigma_m);
-    const float s_acc = sigma_or(fix->s_acc_mps, ins->cfg.gps_vel_sigma_mps);
+    const int has_alt = fv.has_alt != 0u;
+    const int has_vne = (fv.vel_mask & 3u) == 3u;
+    const float *vel = fv.vel_ned_mps;
+    const uint8_t vmask = fv.vel_mask;
+    const float h_acc = fv.h_acc_m, v_acc = fv.v_acc_m, s_acc = fv.s_acc_mps;
     if (!ins->home_set) {
         (void)mca_geo_set_home(&ins->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
         ins->home_set = 1u;
@@ -1101,31 +1088,29 @@ mca_status_t mca_ins_replay(mca_ins_t *ins, const mca_imu_sample_t *imu, size_t 
         (n_mag > 0u && mag == NULL)) {
         return MCA_ERR_NULL;
     }
-    size_t i = 0u, j = 0u, k = 0u;
-    /* bounded: each pass consumes one event (ALGORITHMS.md 9) */
-    while (i < n_imu || j < n_gps || k < n_mag) {
-        const uint64_t ti = i < n_imu ? imu[i].t_us : UINT64_MAX;
-        const uint64_t tg = j < n_gps ? gps[j].t_rx_us : UINT64_MAX;
-        const uint64_t tm = k < n_mag ? mag[k].t_us : UINT64_MAX;
-        if (i < n_imu && ti <= tg && ti <= tm) {
-            const mca_status_t st = mca_ins_imu(ins, ti, imu[i].gyro_b_rps, imu[i].accel_b_mps2);
+    mca_replay_cursor_t c = {0u, 0u, 0u};
+    int ev;
+    /* bounded: each pass consumes one event; the order of ALGORITHMS.md 9 (mca_replay_next) */
+    while ((ev = mca_replay_next(&c, imu, n_imu, gps, n_gps, mag, n_mag)) != MCA_EVENT_NONE) {
+        if (ev == MCA_EVENT_IMU) {
+            const mca_status_t st = mca_ins_imu(ins, imu[c.i].t_us, imu[c.i].gyro_b_rps, imu[c.i].accel_b_mps2);
             if (imu_status != NULL) {
-                imu_status[i] = (uint8_t)st;
+                imu_status[c.i] = (uint8_t)st;
             }
-            mca_ins_output(ins, &out[i]);
-            ++i;
-        } else if (j < n_gps && tg <= tm) {
-            const mca_status_t st = mca_ins_gps(ins, &gps[j].fix);
+            mca_ins_output(ins, &out[c.i]);
+            ++c.i;
+        } else if (ev == MCA_EVENT_GPS) {
+            const mca_status_t st = mca_ins_gps(ins, &gps[c.j].fix);
             if (gps_status != NULL) {
-                gps_status[j] = (uint8_t)st;
+                gps_status[c.j] = (uint8_t)st;
             }
-            ++j;
+            ++c.j;
         } else {
-            const mca_status_t st = mca_ins_mag(ins, tm, mag[k].mag_b);
+            const mca_status_t st = mca_ins_mag(ins, mag[c.k].t_us, mag[c.k].mag_b);
             if (mag_status != NULL) {
-                mag_status[k] = (uint8_t)st;
+                mag_status[c.k] = (uint8_t)st;
             }
-            ++k;
+            ++c.k;
         }
     }
     return MCA_OK;

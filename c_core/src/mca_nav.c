@@ -379,9 +379,10 @@ static float sigma_or(float s, float dflt)
     return (isfinite(s) && s > 0.0f) ? s : dflt;
 }
 
-mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
+mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float alt_sigma_m, float vel_sigma_mps,
+                              mca_fix_view_t *view)
 {
-    if (nav == NULL || fix == NULL) {
+    if (fix == NULL || view == NULL) {
         return MCA_ERR_NULL;
     }
     if (fix->fix_type < 2u) {
@@ -397,15 +398,37 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
         (has_vd && !isfinite(fix->vel_ned_mps[2]))) {
         return MCA_ERR_NONFINITE;
     }
+    view->vel_ned_mps[0] = has_vne ? fix->vel_ned_mps[0] : 0.0f;
+    view->vel_ned_mps[1] = has_vne ? fix->vel_ned_mps[1] : 0.0f;
+    view->vel_ned_mps[2] = has_vd ? fix->vel_ned_mps[2] : 0.0f;
+    view->vel_mask = (uint8_t)((has_vne ? 3u : 0u) | (has_vd ? 4u : 0u));
+    view->has_alt = has_alt ? 1u : 0u;
+    view->h_acc_m = sigma_or(fix->h_acc_m, pos_sigma_m);
+    view->v_acc_m = sigma_or(fix->v_acc_m, alt_sigma_m);
+    view->s_acc_mps = sigma_or(fix->s_acc_mps, vel_sigma_mps);
+    return MCA_OK;
+}
+
+mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
+{
+    if (nav == NULL || fix == NULL) {
+        return MCA_ERR_NULL;
+    }
+    mca_fix_view_t fv;
+    const mca_status_t sf =
+        mca_gps_fix_read(fix, nav->cfg.gps_pos_sigma_m, nav->cfg.gps_alt_sigma_m, nav->cfg.gps_vel_sigma_mps, &fv);
+    if (sf != MCA_OK) {
+        return sf;
+    }
     if (nav->have_fix && fix->t_us <= nav->t_lastfix_us) {
         return MCA_ERR_TIME_BACKWARDS;
     }
-    const float vel[3] = {has_vne ? fix->vel_ned_mps[0] : 0.0f, has_vne ? fix->vel_ned_mps[1] : 0.0f,
-                          has_vd ? fix->vel_ned_mps[2] : 0.0f};
-    const uint8_t vmask = (uint8_t)((has_vne ? 3u : 0u) | (has_vd ? 4u : 0u));
-    const float h_acc = sigma_or(fix->h_acc_m, nav->cfg.gps_pos_sigma_m);
-    const float v_acc = sigma_or(fix->v_acc_m, nav->cfg.gps_alt_sigma_m);
-    const float s_acc = sigma_or(fix->s_acc_mps, nav->cfg.gps_vel_sigma_mps);
+    const int has_alt = fv.has_alt != 0u;
+    const int has_vne = (fv.vel_mask & 3u) == 3u;
+    const int has_vd = (fv.vel_mask & 4u) != 0u;
+    const float *vel = fv.vel_ned_mps;
+    const uint8_t vmask = fv.vel_mask;
+    const float h_acc = fv.h_acc_m, v_acc = fv.v_acc_m, s_acc = fv.s_acc_mps;
 
     if (!nav->home_set) {
         (void)mca_geo_set_home(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
@@ -510,7 +533,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
     nav->have_fix = 1u;
     nav->t_lastfix_us = fix->t_us;
     nav->t_prevfix_us = fix->t_us;
-    memcpy(nav->vel_prev, vel, sizeof(vel));
+    memcpy(nav->vel_prev, vel, sizeof(nav->vel_prev));
     nav->prev_vel_mask = vmask;
     return MCA_OK;
 }

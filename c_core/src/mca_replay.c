@@ -4,6 +4,21 @@
 #include <math.h>
 #include <string.h>
 
+int mca_replay_next(const mca_replay_cursor_t *c, const mca_imu_sample_t *imu, size_t n_imu,
+                    const mca_gps_event_t *gps, size_t n_gps, const mca_mag_sample_t *mag, size_t n_mag)
+{
+    const uint64_t ti = c->i < n_imu ? imu[c->i].t_us : UINT64_MAX;
+    const uint64_t tg = c->j < n_gps ? gps[c->j].t_rx_us : UINT64_MAX;
+    const uint64_t tm = c->k < n_mag ? mag[c->k].t_us : UINT64_MAX;
+    if (c->i < n_imu && ti <= tg && ti <= tm) {
+        return MCA_EVENT_IMU;
+    }
+    if (c->j < n_gps && tg <= tm) {
+        return MCA_EVENT_GPS;
+    }
+    return c->k < n_mag ? MCA_EVENT_MAG : MCA_EVENT_NONE;
+}
+
 mca_status_t mca_nav_replay(mca_nav_t *nav, const mca_imu_sample_t *imu, size_t n_imu, const mca_gps_event_t *gps,
                             size_t n_gps, const mca_mag_sample_t *mag, size_t n_mag, mca_nav_output_t *out,
                             uint8_t *imu_status, uint8_t *gps_status, uint8_t *mag_status)
@@ -12,31 +27,29 @@ mca_status_t mca_nav_replay(mca_nav_t *nav, const mca_imu_sample_t *imu, size_t 
         (n_mag > 0u && mag == NULL)) {
         return MCA_ERR_NULL;
     }
-    size_t i = 0u, j = 0u, k = 0u;
+    mca_replay_cursor_t c = {0u, 0u, 0u};
+    int ev;
     /* bounded: each pass consumes one event */
-    while (i < n_imu || j < n_gps || k < n_mag) {
-        const uint64_t ti = i < n_imu ? imu[i].t_us : UINT64_MAX;
-        const uint64_t tg = j < n_gps ? gps[j].t_rx_us : UINT64_MAX;
-        const uint64_t tm = k < n_mag ? mag[k].t_us : UINT64_MAX;
-        if (i < n_imu && ti <= tg && ti <= tm) {
-            const mca_status_t st = mca_nav_imu(nav, ti, imu[i].gyro_b_rps, imu[i].accel_b_mps2);
+    while ((ev = mca_replay_next(&c, imu, n_imu, gps, n_gps, mag, n_mag)) != MCA_EVENT_NONE) {
+        if (ev == MCA_EVENT_IMU) {
+            const mca_status_t st = mca_nav_imu(nav, imu[c.i].t_us, imu[c.i].gyro_b_rps, imu[c.i].accel_b_mps2);
             if (imu_status != NULL) {
-                imu_status[i] = (uint8_t)st;
+                imu_status[c.i] = (uint8_t)st;
             }
-            mca_nav_output(nav, &out[i]);
-            ++i;
-        } else if (j < n_gps && tg <= tm) {
-            const mca_status_t st = mca_nav_gps(nav, &gps[j].fix);
+            mca_nav_output(nav, &out[c.i]);
+            ++c.i;
+        } else if (ev == MCA_EVENT_GPS) {
+            const mca_status_t st = mca_nav_gps(nav, &gps[c.j].fix);
             if (gps_status != NULL) {
-                gps_status[j] = (uint8_t)st;
+                gps_status[c.j] = (uint8_t)st;
             }
-            ++j;
+            ++c.j;
         } else {
-            const mca_status_t st = mca_nav_mag(nav, tm, mag[k].mag_b);
+            const mca_status_t st = mca_nav_mag(nav, mag[c.k].t_us, mag[c.k].mag_b);
             if (mag_status != NULL) {
-                mag_status[k] = (uint8_t)st;
+                mag_status[c.k] = (uint8_t)st;
             }
-            ++k;
+            ++c.k;
         }
     }
     return MCA_OK;

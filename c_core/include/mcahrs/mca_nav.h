@@ -154,6 +154,26 @@ typedef struct {
     uint32_t n_grav_skip;
 } mca_nav_output_t;
 
+/** A checked fix: velocity with 0 where absent, what is present, accuracies with defaults. */
+typedef struct {
+    float vel_ned_mps[3];
+    float h_acc_m;
+    float v_acc_m;
+    float s_acc_mps;
+    uint8_t vel_mask;  /**< bit i: velocity component i present (N and E come together) */
+    uint8_t has_alt;
+} mca_fix_view_t;
+
+/**
+ * Check a fix's own content (ALGORITHMS.md 8, GPS step 1 without the time test) and read it,
+ * missing or non-positive accuracies replaced by the given defaults. Shared by every filter
+ * that takes fixes (navigation, INS). Cost: a few compares.
+ * @return MCA_ERR_NULL, MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE (a
+ *         velocity flagged present but not finite), MCA_OK (view filled).
+ */
+mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float alt_sigma_m, float vel_sigma_mps,
+                              mca_fix_view_t *view);
+
 /** Ground vehicle defaults (ALGORITHMS.md 8). */
 void mca_nav_config_default(mca_nav_config_t *cfg);
 /** Small fixed-wing preset. */

@@ -26,6 +26,28 @@ typedef struct {
     mca_gps_fix_t fix;
 } mca_gps_event_t;
 
+/** Where a batch replay is in its three event arrays. */
+typedef struct {
+    size_t i; /**< next IMU sample */
+    size_t j; /**< next fix */
+    size_t k; /**< next magnetometer sample */
+} mca_replay_cursor_t;
+
+/** The kinds mca_replay_next returns. */
+#define MCA_EVENT_NONE 0
+#define MCA_EVENT_IMU 1
+#define MCA_EVENT_GPS 2
+#define MCA_EVENT_MAG 3
+
+/**
+ * The kind of the next event in the order of ALGORITHMS.md 9 (by time; at equal times IMU,
+ * then GPS, then magnetometer), MCA_EVENT_NONE when all are consumed. The caller handles
+ * the event at c->i, c->j or c->k and advances that index. Every batch replay (navigation,
+ * INS) walks its recording with this, so the order rule lives here only.
+ */
+int mca_replay_next(const mca_replay_cursor_t *c, const mca_imu_sample_t *imu, size_t n_imu,
+                    const mca_gps_event_t *gps, size_t n_gps, const mca_mag_sample_t *mag, size_t n_mag);
+
 /**
  * Run every event through nav (already initialised by mca_nav_init) in time order.
  * Each array must be sorted by its time. Cost: the sum of the steps.
