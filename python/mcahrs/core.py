@@ -368,6 +368,75 @@ def gnss_to_c(gnss: np.ndarray) -> np.ndarray:
     return ev
 
 
+def _fill_fix(
+    f: Any,
+    t_us: int,
+    lat_e7: int,
+    lon_e7: int,
+    alt_mm: int | None,
+    vel_ned_mps: Any,
+    h_acc_m: float,
+    v_acc_m: float,
+    s_acc_mps: float,
+    fix_type: int,
+    vel_d: bool,
+) -> None:
+    """Fill a ``mca_gps_fix_t`` from keyword values (what ``Nav.gps`` and ``Ins.gps`` take)."""
+    f.t_us, f.lat_e7, f.lon_e7 = int(t_us), int(lat_e7), int(lon_e7)
+    f.alt_mm = 0 if alt_mm is None else int(alt_mm)
+    flags = 0 if alt_mm is None else lib.MCA_FIX_ALT
+    if vel_ned_mps is not None:
+        f.vel_ned_mps = [float(v) for v in vel_ned_mps]
+        flags |= lib.MCA_FIX_VEL_NE | (lib.MCA_FIX_VEL_D if vel_d else 0)
+    f.h_acc_m, f.v_acc_m, f.s_acc_mps = h_acc_m, v_acc_m, s_acc_mps
+    f.flags, f.fix_type = flags, fix_type
+
+
+def _run_batch(
+    c_replay: Any, state: Any, rec: Recording, out_dtype: np.dtype, what: str
+) -> dict[str, np.ndarray]:
+    """A recording through a C batch replay (``mca_nav_replay``, ``mca_ins_replay``): the arrays in
+    the C layouts, one call, every output field and the per-event statuses as arrays."""
+    imu = np.zeros(len(rec.imu), IMU_C_DTYPE)
+    imu["t_us"] = rec.imu["t_us"]
+    imu["gyro_b_rps"] = rec.imu["gyro_rps"]
+    imu["accel_b_mps2"] = rec.imu["accel_mps2"]
+    gps = gnss_to_c(rec.gnss)
+    mag = np.zeros(len(rec.mag), MAG_C_DTYPE)
+    mag["t_us"] = rec.mag["t_us"]
+    mag["mag_b"] = rec.mag["mag_b"]
+    for name, t in (("imu", imu["t_us"]), ("gnss", gps["t_rx_us"]), ("mag", mag["t_us"])):
+        if np.any(np.diff(t.astype(np.int64)) < 0):
+            raise errors.BadArgError(f"{rec.name}: {name} samples must be sorted by time")
+    out = np.zeros(len(imu), out_dtype)
+    st_i = np.zeros(len(imu), np.uint8)
+    st_g = np.zeros(len(gps), np.uint8)
+    st_m = np.zeros(len(mag), np.uint8)
+
+    def ptr(a: np.ndarray) -> Any:
+        return ffi.cast("void *", ffi.from_buffer(a)) if len(a) else ffi.NULL
+
+    check(
+        c_replay(
+            state,
+            ptr(imu),
+            len(imu),
+            ptr(gps),
+            len(gps),
+            ptr(mag),
+            len(mag),
+            ptr(out),
+            ptr(st_i),
+            ptr(st_g),
+            ptr(st_m),
+        ),
+        what,
+    )
+    res = {name: out[name] for name in out_dtype.names}
+    res.update(imu_status=st_i, gps_status=st_g, mag_status=st_m)
+    return res
+
+
 class Nav:
     """The navigation top level of the C core, one sample at a time or a whole recording."""
 
@@ -398,14 +467,7 @@ class Nav:
         vel_d: bool = True,
     ) -> None:
         f = self._fix
-        f.t_us, f.lat_e7, f.lon_e7 = int(t_us), int(lat_e7), int(lon_e7)
-        f.alt_mm = 0 if alt_mm is None else int(alt_mm)
-        flags = 0 if alt_mm is None else lib.MCA_FIX_ALT
-        if vel_ned_mps is not None:
-            f.vel_ned_mps = [float(v) for v in vel_ned_mps]
-            flags |= lib.MCA_FIX_VEL_NE | (lib.MCA_FIX_VEL_D if vel_d else 0)
-        f.h_acc_m, f.v_acc_m, f.s_acc_mps = h_acc_m, v_acc_m, s_acc_mps
-        f.flags, f.fix_type = flags, fix_type
+        _fill_fix(f, t_us, lat_e7, lon_e7, alt_mm, vel_ned_mps, h_acc_m, v_acc_m, s_acc_mps, fix_type, vel_d)
         check(lib.mca_nav_gps(self._nav, f), f"mca_nav_gps(t_us={t_us}, lat_e7={lat_e7}, lon_e7={lon_e7})")
 
     def mag(self, t_us: int, mag_b: Any) -> None:
@@ -418,45 +480,7 @@ class Nav:
 
     def replay(self, rec: Recording) -> dict[str, np.ndarray]:
         """Run a whole recording (ALGORITHMS.md 9) in one C call; one output row per IMU sample."""
-        imu = np.zeros(len(rec.imu), IMU_C_DTYPE)
-        imu["t_us"] = rec.imu["t_us"]
-        imu["gyro_b_rps"] = rec.imu["gyro_rps"]
-        imu["accel_b_mps2"] = rec.imu["accel_mps2"]
-        gps = gnss_to_c(rec.gnss)
-        mag = np.zeros(len(rec.mag), MAG_C_DTYPE)
-        mag["t_us"] = rec.mag["t_us"]
-        mag["mag_b"] = rec.mag["mag_b"]
-        if np.any(np.diff(imu["t_us"].astype(np.int64)) < 0) or np.any(
-            np.diff(gps["t_rx_us"].astype(np.int64)) < 0
-        ):
-            raise errors.BadArgError(f"{rec.name}: samples must be sorted by time")
-        out = np.zeros(len(imu), OUT_C_DTYPE)
-        st_i = np.zeros(len(imu), np.uint8)
-        st_g = np.zeros(len(gps), np.uint8)
-        st_m = np.zeros(len(mag), np.uint8)
-
-        def ptr(ctype: str, a: np.ndarray) -> Any:
-            return ffi.cast(ctype, ffi.from_buffer(a)) if len(a) else ffi.NULL
-
-        check(
-            lib.mca_nav_replay(
-                self._nav,
-                ptr("mca_imu_sample_t *", imu),
-                len(imu),
-                ptr("mca_gps_event_t *", gps),
-                len(gps),
-                ptr("mca_mag_sample_t *", mag),
-                len(mag),
-                ptr("mca_nav_output_t *", out),
-                ptr("uint8_t *", st_i),
-                ptr("uint8_t *", st_g),
-                ptr("uint8_t *", st_m),
-            ),
-            "mca_nav_replay",
-        )
-        res = {name: out[name] for name in OUT_C_DTYPE.names}
-        res.update(imu_status=st_i, gps_status=st_g, mag_status=st_m)
-        return res
+        return _run_batch(lib.mca_nav_replay, self._nav, rec, OUT_C_DTYPE, "mca_nav_replay")
 
 
 def replay(rec: Recording, cfg: Any = None) -> dict[str, np.ndarray]:
@@ -696,14 +720,7 @@ class Ins:
         vel_d: bool = True,
     ) -> None:
         f = self._fix
-        f.t_us, f.lat_e7, f.lon_e7 = int(t_us), int(lat_e7), int(lon_e7)
-        f.alt_mm = 0 if alt_mm is None else int(alt_mm)
-        flags = 0 if alt_mm is None else lib.MCA_FIX_ALT
-        if vel_ned_mps is not None:
-            f.vel_ned_mps = [float(v) for v in vel_ned_mps]
-            flags |= lib.MCA_FIX_VEL_NE | (lib.MCA_FIX_VEL_D if vel_d else 0)
-        f.h_acc_m, f.v_acc_m, f.s_acc_mps = h_acc_m, v_acc_m, s_acc_mps
-        f.flags, f.fix_type = flags, fix_type
+        _fill_fix(f, t_us, lat_e7, lon_e7, alt_mm, vel_ned_mps, h_acc_m, v_acc_m, s_acc_mps, fix_type, vel_d)
         check(lib.mca_ins_gps(self._ins, f), f"mca_ins_gps(t_us={t_us}, lat_e7={lat_e7}, lon_e7={lon_e7})")
 
     def mag(self, t_us: int, mag_b: Any) -> None:
@@ -733,42 +750,8 @@ class Ins:
         ``pos_ned_m``, ``vel_ned_mps``, ``gyro_bias_rps``, ``accel_bias_mps2``, ``p_diag``, ``gps_t``,
         ``flags``, counters...), ``biases`` (n, 6: gyro then accel) and the per-event statuses
         ``imu_status``, ``gps_status``, ``mag_status`` (not raised)."""
-        imu = np.zeros(len(rec.imu), IMU_C_DTYPE)
-        imu["t_us"] = rec.imu["t_us"]
-        imu["gyro_b_rps"] = rec.imu["gyro_rps"]
-        imu["accel_b_mps2"] = rec.imu["accel_mps2"]
-        gps = gnss_to_c(rec.gnss)
-        mag = np.zeros(len(rec.mag), MAG_C_DTYPE)
-        mag["t_us"] = rec.mag["t_us"]
-        mag["mag_b"] = rec.mag["mag_b"]
-        for name, t in (("imu", imu["t_us"]), ("gnss", gps["t_rx_us"]), ("mag", mag["t_us"])):
-            if np.any(np.diff(t.astype(np.int64)) < 0):
-                raise errors.BadArgError(f"{rec.name}: {name} samples must be sorted by time")
-        out = np.zeros(len(imu), INS_OUT_C_DTYPE)
-        st_i = np.zeros(len(imu), np.uint8)
-        st_g = np.zeros(len(gps), np.uint8)
-        st_m = np.zeros(len(mag), np.uint8)
-
-        def ptr(ctype: str, a: np.ndarray) -> Any:
-            return ffi.cast(ctype, ffi.from_buffer(a)) if len(a) else ffi.NULL
-
-        st = lib.mca_ins_replay(
-            self._ins,
-            ptr("mca_imu_sample_t *", imu),
-            len(imu),
-            ptr("mca_gps_event_t *", gps),
-            len(gps),
-            ptr("mca_mag_sample_t *", mag),
-            len(mag),
-            ptr("mca_ins_output_t *", out),
-            ptr("uint8_t *", st_i),
-            ptr("uint8_t *", st_g),
-            ptr("uint8_t *", st_m),
-        )
-        check(st, "mca_ins_replay")
-        res = {name: out[name] for name in INS_OUT_C_DTYPE.names}
-        res["biases"] = np.concatenate([out["gyro_bias_rps"], out["accel_bias_mps2"]], axis=1)
-        res.update(imu_status=st_i, gps_status=st_g, mag_status=st_m)
+        res = _run_batch(lib.mca_ins_replay, self._ins, rec, INS_OUT_C_DTYPE, "mca_ins_replay")
+        res["biases"] = np.concatenate([res["gyro_bias_rps"], res["accel_bias_mps2"]], axis=1)
         return res
 
 
