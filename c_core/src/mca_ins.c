@@ -688,25 +688,15 @@ mca_status_t mca_ins_imu(mca_ins_t *ins, uint64_t t_us, const float w[3], const 
     if (ins == NULL || w == NULL || f == NULL) {
         return MCA_ERR_NULL;
     }
-    if (!mca_all_finite(w, 3u) || !mca_all_finite(f, 3u)) {
-        return MCA_ERR_NONFINITE;
-    }
-    if (!ins->have_imu) {
-        ins->have_imu = 1u;
-        ins->t_imu_us = t_us;
-        ins->t_first_us = t_us;
-        return MCA_OK;
-    }
-    if (t_us <= ins->t_imu_us) {
-        return MCA_ERR_TIME_BACKWARDS;
-    }
-    const uint64_t dt64 = t_us - ins->t_imu_us;
-    ins->t_imu_us = t_us;
-    if (dt64 > us(ins->cfg.imu_dt_max_s)) {
+    uint32_t dt_us; /* the clock rules shared with the navigation filter */
+    const mca_status_t sc = mca_imu_clock_step(&ins->t_imu_us, &ins->t_first_us, &ins->have_imu, t_us, w, f,
+                                               us(ins->cfg.imu_dt_max_s), &dt_us);
+    if (sc == MCA_ERR_BAD_DT) {
         ins->nav = 0u; /* re-anchored; position and velocity unknown after the gap: the next fix restarts */
-        return MCA_ERR_BAD_DT;
     }
-    const uint32_t dt_us = (uint32_t)dt64;
+    if (sc != MCA_OK || dt_us == 0u) {
+        return sc; /* an error, or the first sample (clock anchored only) */
+    }
     const float dt = (float)dt_us * 1e-6f;
     const float sat = ins->cfg.accel_sat_mps2;
     if (fabsf(f[0]) >= sat || fabsf(f[1]) >= sat || fabsf(f[2]) >= sat) {

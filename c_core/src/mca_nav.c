@@ -333,29 +333,45 @@ static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
     (void)gravity_obs(nav, hist_newest(nav), nav->att.q_nb, acc, r_acc, &rep);
 }
 
+mca_status_t mca_imu_clock_step(uint64_t *t_last_us, uint64_t *t_first_us, uint8_t *have, uint64_t t_us,
+                                const float gyro[3], const float accel[3], uint32_t dt_max_us, uint32_t *dt_us)
+{
+    if (t_last_us == NULL || t_first_us == NULL || have == NULL || gyro == NULL || accel == NULL || dt_us == NULL) {
+        return MCA_ERR_NULL;
+    }
+    *dt_us = 0u;
+    if (!mca_all_finite(gyro, 3u) || !mca_all_finite(accel, 3u)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (!*have) {
+        *have = 1u;
+        *t_last_us = t_us;
+        *t_first_us = t_us;
+        return MCA_OK;
+    }
+    if (t_us <= *t_last_us) {
+        return MCA_ERR_TIME_BACKWARDS;
+    }
+    const uint64_t dt64 = t_us - *t_last_us;
+    *t_last_us = t_us;
+    if (dt64 > dt_max_us) {
+        return MCA_ERR_BAD_DT; /* re-anchored */
+    }
+    *dt_us = (uint32_t)dt64;
+    return MCA_OK;
+}
+
 mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], const float accel[3])
 {
     if (nav == NULL || gyro == NULL || accel == NULL) {
         return MCA_ERR_NULL;
     }
-    if (!mca_all_finite(gyro, 3u) || !mca_all_finite(accel, 3u)) {
-        return MCA_ERR_NONFINITE;
+    uint32_t dt_us;
+    const mca_status_t sc = mca_imu_clock_step(&nav->t_imu_us, &nav->t_first_us, &nav->have_imu, t_us, gyro, accel,
+                                               us(nav->cfg.imu_dt_max_s), &dt_us);
+    if (sc != MCA_OK || dt_us == 0u) {
+        return sc; /* an error, or the first sample (clock anchored only) */
     }
-    if (!nav->have_imu) {
-        nav->have_imu = 1u;
-        nav->t_imu_us = t_us;
-        nav->t_first_us = t_us;
-        return MCA_OK;
-    }
-    if (t_us <= nav->t_imu_us) {
-        return MCA_ERR_TIME_BACKWARDS;
-    }
-    const uint64_t dt64 = t_us - nav->t_imu_us;
-    nav->t_imu_us = t_us;
-    if (dt64 > us(nav->cfg.imu_dt_max_s)) {
-        return MCA_ERR_BAD_DT; /* re-anchored only */
-    }
-    const uint32_t dt_us = (uint32_t)dt64;
     const float dt = (float)dt_us * 1e-6f;
     const float sat = nav->cfg.accel_sat_mps2;
     const int saturated = fabsf(accel[0]) >= sat || fabsf(accel[1]) >= sat || fabsf(accel[2]) >= sat;

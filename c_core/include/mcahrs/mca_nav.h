@@ -174,6 +174,17 @@ typedef struct {
 mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float alt_sigma_m, float vel_sigma_mps,
                               mca_fix_view_t *view);
 
+/**
+ * IMU time bookkeeping every filter does first (ALGORITHMS.md 8, IMU step 1-3): finite
+ * inputs, the first sample only anchors the clock (*dt_us = 0), no time going backwards, a
+ * gap longer than dt_max_us re-anchors the clock and is BAD_DT. Cost: a few compares.
+ * @param[in,out] t_last_us, t_first_us, have  the filter's clock
+ * @return MCA_ERR_NONFINITE, MCA_ERR_TIME_BACKWARDS (clock unchanged), MCA_ERR_BAD_DT (clock
+ *         re-anchored at t_us), MCA_OK with *dt_us the step (0 for the first sample).
+ */
+mca_status_t mca_imu_clock_step(uint64_t *t_last_us, uint64_t *t_first_us, uint8_t *have, uint64_t t_us,
+                                const float gyro[3], const float accel[3], uint32_t dt_max_us, uint32_t *dt_us);
+
 /** Ground vehicle defaults (ALGORITHMS.md 8). */
 void mca_nav_config_default(mca_nav_config_t *cfg);
 /** Small fixed-wing preset. */
