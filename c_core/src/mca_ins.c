@@ -367,24 +367,168 @@ mca_status_t mca_ins_error_model(const mca_ins_t *ins, const float f_n[3], float
 }
 
 /* P = Phi P Phi^T + Qd over t_s with the NED specific force f_n (ALGORITHMS.md 10, Discretisation).
- * Scratch: ws[0..225) A = F T, ws[225..450) Phi, ws[450..675) Phi P. */
+ *
+ * Block-sparse form. In 3 x 3 blocks [dr, dv, phi, b_g, b_a] (indices 0..4), A = F T has the
+ * blocks of the table of section 10 only:
+ *   row dr: dv          row dv: dr, dv, phi, b_a     row phi: dv, phi, b_g
+ *   row b_g: b_g        row b_a: b_a
+ * so Phi = I + A + A^2 / 2 has (I, A and the blocks reached by A^2)
+ *   row dr: dr (diagonal: I + diag(0, 0, T^2 g'/2)), dv, phi, b_a       (Phi_dr,bg = 0)
+ *   row dv, row phi: all five blocks
+ *   row b_g: (1 + a + a^2/2) I, a = -T/tau_g; row b_a: likewise with tau_a (scalar blocks).
+ * A^2 is formed block-wise over the nonzero blocks only, S = Phi P over Phi's nonzero blocks
+ * (the diagonal ones as diagonals; of the bias rows only what the upper triangle reads), then
+ * Phi P Phi^T = S Phi^T on the upper block triangle only (upper elements of the diagonal
+ * blocks), Qd added there and the result mirrored, so P stays exactly symmetric (the
+ * (P + P^T)/2 of the spec is the identity on it).
+ * Scratch: ws[0..225) A, ws[225..450) Phi (only its nonzero blocks are written or read),
+ * ws[450..675) S = Phi P. */
+#define NB 5u /* 3 x 3 blocks per side */
+#define BIT(b) (1u << (b))
+/* nonzero blocks of F (A) by block row */
+static const uint8_t F_NZ[NB] = {BIT(1), BIT(0) | BIT(1) | BIT(2) | BIT(4), BIT(1) | BIT(2) | BIT(3), BIT(3), BIT(4)};
+/* nonzero blocks of Phi by block row; Phi_DIAG: the diagonal ones (dr,dr; b_g,b_g; b_a,b_a) */
+static const uint8_t PHI_NZ[NB] = {BIT(0) | BIT(1) | BIT(2) | BIT(4), 0x1Fu, 0x1Fu, BIT(3), BIT(4)};
+#define PHI_DIAG(i, k) ((i) == (k) && ((i) == 0u || (i) >= 3u))
+
+/* first element of block (bi, bj) of a 15 x 15 row-major matrix */
+static float *blk(float *m, size_t bi, size_t bj)
+{
+    return m + 3u * bi * NX + 3u * bj;
+}
+
+static const float *cblk(const float *m, size_t bi, size_t bj)
+{
+    return m + 3u * bi * NX + 3u * bj;
+}
+
+/* C += A B, 3 x 3 blocks with row stride NX */
+static void mac3(float *c, const float *a, const float *b)
+{
+    for (size_t r = 0; r < 3u; ++r) {
+        for (size_t j = 0; j < 3u; ++j) {
+            float s = c[r * NX + j];
+            for (size_t k = 0; k < 3u; ++k) {
+                s += a[r * NX + k] * b[k * NX + j];
+            }
+            c[r * NX + j] = s;
+        }
+    }
+}
+
+/* C += A B^T, 3 x 3 blocks with row stride NX (B diagonal when b_diag); upper: only j >= r */
+static void mac3_bt(float *c, const float *a, const float *b, int b_diag, int upper)
+{
+    for (size_t r = 0; r < 3u; ++r) {
+        for (size_t j = upper ? r : 0u; j < 3u; ++j) {
+            float s = c[r * NX + j];
+            if (b_diag) {
+                s += a[r * NX + j] * b[j * NX + j];
+            } else {
+                for (size_t k = 0; k < 3u; ++k) {
+                    s += a[r * NX + k] * b[j * NX + k];
+                }
+            }
+            c[r * NX + j] = s;
+        }
+    }
+}
+
 static void cov_propagate(mca_ins_t *ins, float t_s, const float f_n[3])
 {
-    float *a = ins->ws, *phi = ins->ws + NX * NX, *tmp = ins->ws + 2u * NX * NX;
+    float *a = ins->ws, *phi = ins->ws + NX * NX, *sp = ins->ws + 2u * NX * NX;
+    float *p = ins->p;
     error_model(ins, f_n, a);
-    for (size_t i = 0; i < NX * NX; ++i) {
-        a[i] *= t_s;
+    /* A = F T and Phi = I + A + A^2 / 2 on the nonzero blocks */
+    for (size_t bi = 0; bi < NB; ++bi) {
+        for (size_t bj = 0; bj < NB; ++bj) {
+            if ((F_NZ[bi] & BIT(bj)) != 0u) {
+                float *ab = blk(a, bi, bj);
+                for (size_t r = 0; r < 3u; ++r) {
+                    for (size_t j = 0; j < 3u; ++j) {
+                        ab[r * NX + j] *= t_s;
+                    }
+                }
+            }
+        }
     }
-    mca_mat_mul(phi, a, a, NX, NX, NX); /* (F T)^2 */
-    for (size_t i = 0; i < NX * NX; ++i) {
-        phi[i] = a[i] + 0.5f * phi[i];
+    for (size_t bi = 0; bi < NB; ++bi) {
+        for (size_t bj = 0; bj < NB; ++bj) {
+            if ((PHI_NZ[bi] & BIT(bj)) != 0u) {
+                float *pb = blk(phi, bi, bj);
+                for (size_t r = 0; r < 3u; ++r) {
+                    memset(&pb[r * NX], 0, 3u * sizeof(float));
+                }
+            }
+        }
+        for (size_t bk = 0; bk < NB; ++bk) { /* (A^2)_ij = sum_k A_ik A_kj */
+            if ((F_NZ[bi] & BIT(bk)) == 0u) {
+                continue;
+            }
+            for (size_t bj = 0; bj < NB; ++bj) {
+                if ((F_NZ[bk] & BIT(bj)) != 0u) {
+                    mac3(blk(phi, bi, bj), cblk(a, bi, bk), cblk(a, bk, bj));
+                }
+            }
+        }
+        for (size_t bj = 0; bj < NB; ++bj) {
+            if ((PHI_NZ[bi] & BIT(bj)) != 0u) {
+                float *pb = blk(phi, bi, bj);
+                const float *ab = cblk(a, bi, bj);
+                for (size_t r = 0; r < 3u; ++r) {
+                    for (size_t j = 0; j < 3u; ++j) {
+                        pb[r * NX + j] = ab[r * NX + j] + 0.5f * pb[r * NX + j];
+                    }
+                }
+                if (bi == bj) {
+                    for (size_t r = 0; r < 3u; ++r) {
+                        pb[r * (NX + 1u)] += 1.0f;
+                    }
+                }
+            }
+        }
     }
-    for (size_t i = 0; i < NX; ++i) {
-        phi[i * (NX + 1u)] += 1.0f;
+    /* S = Phi P, block row by block row over Phi's nonzero blocks (rows of P scaled and added);
+     * of the bias rows only the columns the upper triangle reads (block column >= block row) */
+    memset(sp, 0, NX * NX * sizeof(float));
+    for (size_t bi = 0; bi < NB; ++bi) {
+        const size_t j0 = (bi >= 3u) ? 3u * bi : 0u;
+        for (size_t bk = 0; bk < NB; ++bk) {
+            if ((PHI_NZ[bi] & BIT(bk)) == 0u) {
+                continue;
+            }
+            const float *pb = cblk(phi, bi, bk);
+            for (size_t r = 0; r < 3u; ++r) {
+                float *srow = &sp[(3u * bi + r) * NX];
+                for (size_t k = 0; k < 3u; ++k) {
+                    if (PHI_DIAG(bi, bk) && k != r) {
+                        continue;
+                    }
+                    const float coef = pb[r * NX + k];
+                    const float *prow = &p[(3u * bk + k) * NX];
+                    for (size_t j = j0; j < NX; ++j) {
+                        srow[j] += coef * prow[j];
+                    }
+                }
+            }
+        }
     }
-    mca_mat_mul(tmp, phi, ins->p, NX, NX, NX);
-    mca_mat_mul_bt(ins->p, tmp, phi, NX, NX, NX);
-    /* Qd = Qc T + (F Qc + Qc F^T) T^2 / 2 with Qc diagonal: (A_ij qc_j + qc_i A_ji) T / 2 */
+    /* upper block triangle of S Phi^T into P */
+    for (size_t bi = 0; bi < NB; ++bi) {
+        for (size_t bj = bi; bj < NB; ++bj) {
+            float *pb = blk(p, bi, bj);
+            for (size_t r = 0; r < 3u; ++r) {
+                memset(&pb[r * NX], 0, 3u * sizeof(float));
+            }
+            for (size_t bk = 0; bk < NB; ++bk) {
+                if ((PHI_NZ[bj] & BIT(bk)) != 0u) {
+                    mac3_bt(pb, cblk(sp, bi, bk), cblk(phi, bj, bk), PHI_DIAG(bj, bk), bi == bj);
+                }
+            }
+        }
+    }
+    /* Qd = Qc T + (F Qc + Qc F^T) T^2 / 2 with Qc diagonal: (A_ij qc_j + qc_i A_ji) T / 2,
+     * on the upper triangle where A_ij or A_ji is nonzero */
     const mca_ins_config_t *c = &ins->cfg;
     const float s = ins->rs.q_scale; /* AKF (1 in the other modes) */
     float qc[NX];
@@ -395,17 +539,32 @@ static void cov_propagate(mca_ins_t *ins, float t_s, const float f_n[3])
         qc[MCA_INS_BG + i] = s * c->gyro_bias_rw_rps2 * c->gyro_bias_rw_rps2;
         qc[MCA_INS_BA + i] = s * c->accel_bias_rw_mps3 * c->accel_bias_rw_mps3;
     }
-    for (size_t i = 0; i < NX; ++i) {
-        for (size_t j = 0; j < NX; ++j) {
-            float q = 0.5f * t_s * (a[i * NX + j] * qc[j] + qc[i] * a[j * NX + i]);
-            if (i == j) {
-                q += qc[i] * t_s;
+    for (size_t bi = 0; bi < NB; ++bi) {
+        for (size_t bj = bi; bj < NB; ++bj) {
+            if (bi != bj && ((F_NZ[bi] & BIT(bj)) | (F_NZ[bj] & BIT(bi))) == 0u) {
+                continue;
             }
-            ins->p[i * NX + j] += q;
+            for (size_t r = 0; r < 3u; ++r) {
+                const size_t i = 3u * bi + r;
+                for (size_t j = (bi == bj) ? i : 3u * bj; j < 3u * bj + 3u; ++j) {
+                    float q = 0.5f * t_s * (a[i * NX + j] * qc[j] + qc[i] * a[j * NX + i]);
+                    if (i == j) {
+                        q += qc[i] * t_s;
+                    }
+                    p[i * NX + j] += q;
+                }
+            }
         }
     }
-    mca_mat_symmetrize(ins->p, NX);
+    for (size_t i = 0; i < NX; ++i) { /* mirror the upper triangle */
+        for (size_t j = i + 1u; j < NX; ++j) {
+            p[j * NX + i] = p[i * NX + j];
+        }
+    }
 }
+#undef PHI_DIAG
+#undef BIT
+#undef NB
 
 /* ------------------------------------------------------------------------ history */
 
