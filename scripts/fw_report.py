@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Cost report of the Cortex-M4F build: flash/RAM, stack, instructions, CPU share.
 
-    python scripts/fw_report.py [--cpi 1.25] [--mhz 168] [--imu-hz 400] [--gps-hz 10]
+    python scripts/fw_report.py [--cpi 1.25] [--mhz 168] [--imu-hz 400] [--gps-hz 10] [--ins-gps-hz 5]
 
 Builds ``c_core/firmware`` for the M4F (build/fw, -O2), replays every golden vector file
 (``tests/vectors/*.mcav``) on ``qemu-system-arm -M mps2-an386 -icount shift=0`` and prints,
@@ -15,7 +15,10 @@ beside the goals (it reports, it does not assert):
    library functions from their prologues), beside the painted high-water measured in QEMU;
 3. executed instructions per call of each measured entry point (exact: see
    c_core/firmware/README.md), mean and max, and the CPU share at the given clock and CPI;
-4. host vs QEMU agreement of the outputs (real libm to tolerance, pinned libm bit for bit).
+4. the loosely-coupled INS (mca_ins.h, the reference filter) beside the CS + gravity navigation
+   filter (mca_nav.h): state RAM, flash, worst stack and instructions of the IMU and GNSS steps,
+   and the CPU share of each at the given clock for --imu-hz IMU + --ins-gps-hz GNSS;
+5. host vs QEMU agreement of the outputs (real libm to tolerance, pinned libm bit for bit).
 """
 
 from __future__ import annotations
@@ -261,12 +264,102 @@ def public_functions(archive: Path) -> list[str]:
     return sorted({ln.split()[-1] for ln in out.splitlines() if re.match(r"^[0-9a-f]+ T ", ln)})
 
 
+def ins_applied_updates(costs: gv.Costs, out: Path) -> np.ndarray:
+    """Instructions of the mca_ins_gps calls after which n_gps_upd of the next INS_OUTPUT grew (an
+    update applied, not a fix skipped before alignment or rejected)."""
+    recs = gv.read_records(out)
+    gps = costs.calls[costs.calls["id"] == gv.EP["INS_GPS"]]
+    instr = {int(c): int(a) for c, a in zip(gps["c"], gps["a"], strict=True)}
+    dt = gv.out_dtype(gv.OP["INS_OUTPUT"])
+    applied, n_upd, pending = [], 0, None
+    for i, (op, payload) in enumerate(recs):
+        if op == gv.OP["INS_GPS"]:
+            pending = i
+        elif op == gv.OP["INS_OUTPUT"]:
+            n = int(np.frombuffer(payload, dt)[0]["n_gps_upd"])
+            if pending is not None and n > n_upd and pending in instr:
+                applied.append(instr[pending])
+            n_upd, pending = n, None
+        elif op == gv.OP["INS_INIT_PRESET"]:
+            n_upd, pending = 0, None
+    return np.array(applied, np.float64)
+
+
+def ins_vs_nav(args, build: Path, meta: dict, samples: dict, painted: dict, frames: dict, edges: dict,
+               applied: np.ndarray) -> None:  # fmt: skip
+    """Section 4b: the INS and the CS + gravity navigation filter side by side."""
+    print(
+        "\n4b. The loosely-coupled INS (mca_ins.h, 15-state error-state EKF) beside the CS + gravity "
+        "navigation filter (mca_nav.h), same build and method (instructions over every vector file)"
+    )
+    if "ins_imu" not in samples or "nav_imu" not in samples:
+        print("  (the vectors lack INS or navigation calls)")
+        return
+
+    def own_flash(img: str, obj: str) -> tuple[int, int]:
+        """(bytes of the core object `obj`, flash of the whole core-alone image) of mca_core_<img>.elf."""
+        mp = build / f"mca_core_{img}.elf.map"
+        if not mp.exists():
+            return 0, 0
+        g = map_groups(mp)
+        c = g.get(f"core {obj}", {})
+        return (
+            sum(c.get(k, 0) for k in ("text", "rodata", "data")),
+            sum(x["text"] + x["rodata"] + x["data"] for x in g.values()),
+        )
+
+    def dist(a: np.ndarray) -> str:
+        return f"{a.mean():7.0f} {np.percentile(a, 99):7.0f} {a.max():7.0f} {a.size:6d}"
+
+    ins_obj, ins_img = own_flash("ins", "mca_ins.c")
+    nav_obj, nav_img = own_flash("nav", "mca_nav.c")
+    st_ins, st_nav = meta.get("sizeof_ins", 0), meta.get("sizeof_nav", 0)
+
+    def row(label: str, ins: str, nav: str) -> None:
+        print(f"  {label:40s} {ins:>30s}   {nav:>30s}")
+
+    row("", "INS (mca_ins)", "CS + gravity nav (mca_nav)")
+    row("state RAM, sizeof (B)", f"mca_ins_t {st_ins}", f"mca_nav_t {st_nav}")
+    row("flash of the filter file (B)", f"mca_ins.c {ins_obj}", f"mca_nav.c {nav_obj}")
+    row("flash, core alone with its header as roots", f"mca_ins.h {ins_img}", f"mca_nav.h {nav_img}")
+    for step in ("imu", "gps"):
+        cells = []
+        for f in ("ins", "nav"):
+            fn = f"mca_{f}_{step}"
+            depth = worst_stack(fn, frames, edges)[0] if fn in frames else 0
+            cells.append(f"{fn} {depth} / {painted.get(f'{f}_{step}', 0)}")
+        row(f"worst stack {step.upper()} step, static / painted (B)", *cells)
+    head = "mean     p99     max  calls"
+    row("instructions per call", head, head)
+    row("  IMU step", dist(samples["ins_imu"]), dist(samples["nav_imu"]))
+    row("  GNSS step (every call)", dist(samples["ins_gps"]), dist(samples["nav_gps"]))
+    if applied.size:
+        row("  GNSS step (INS: updates applied)", dist(applied), "")
+    hz_i, hz_g, clk = args.imu_hz, args.ins_gps_hz, args.mhz * 1e6
+    cells = []
+    for f in ("ins", "nav"):
+        imu, gps = samples[f"{f}_imu"], samples[f"{f}_gps"]
+        load = (hz_i * imu.mean() + hz_g * gps.mean()) * args.cpi / clk
+        worst_us = (imu.max() + gps.max()) * args.cpi / args.mhz
+        cells.append(f"{100 * load:5.2f} %, worst {worst_us:6.0f} us")
+    row(f"CPU {args.mhz:g} MHz, {hz_i:g} Hz IMU + {hz_g:g} Hz GNSS", *cells)
+    print(
+        f"  (CPU: mean load at {args.cpi:g} cycles per instruction; worst = the longest IMU step and the "
+        f"longest GNSS step back to back, against the {1e6 / hz_i:.0f} us IMU period. INS instructions "
+        "from tests/vectors/ins_fixedwing_turns (400 Hz IMU, 5 Hz GNSS, cov_dt_s of the preset); nav "
+        "from the nav_* files (10 Hz GPS; per-call costs do not depend on the rate))"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cpi", type=float, default=1.25, help="cycles per instruction assumed (default 1.25)")
     ap.add_argument("--mhz", type=float, default=168.0)
     ap.add_argument("--imu-hz", type=float, default=400.0)
     ap.add_argument("--gps-hz", type=float, default=10.0)
+    ap.add_argument(
+        "--ins-gps-hz", type=float, default=5.0, help="GNSS rate of the INS vs nav comparison (default 5)"
+    )
     args = ap.parse_args(argv)
 
     build = gv.FW_BUILD
@@ -279,6 +372,7 @@ def main(argv: list[str] | None = None) -> int:
 
     # ---- run the vectors (costs) and the comparisons
     runs = {}
+    ins_applied: list[np.ndarray] = []  # instructions of the mca_ins_gps calls that applied an update
     with tempfile.TemporaryDirectory() as tmp:
         host = gv.build_host_replay()
         for vec in gv.vector_files():
@@ -292,6 +386,7 @@ def main(argv: list[str] | None = None) -> int:
             hp, qp = Path(tmp) / f"{vec.stem}.hp", Path(tmp) / f"{vec.stem}.qp"
             gv.run_host(host.with_name("replay_pinned"), vec, hp)
             gv.run_qemu(elf.with_name("fw_pinned.elf"), vec, qp)
+            ins_applied.append(ins_applied_updates(gv.read_costs(cost), out))
             runs[vec.stem] = (
                 gv.read_costs(cost),
                 gv.compare_outputs(href, out),
@@ -397,10 +492,12 @@ def main(argv: list[str] | None = None) -> int:
         for ep in np.unique(costs.calls["id"]):
             per_ep[gv.EP_NAME.get(int(ep), str(ep))].append(costs.calls["a"][costs.calls["id"] == ep])
     stats = {}
+    samples: dict[str, np.ndarray] = {}
     print(f"  {'entry point':16s} {'calls':>6s} {'mean':>8s} {'p99':>8s} {'max':>8s} {'min':>7s}  goal")
     for ep in sorted(per_ep, key=lambda e: gv.EP[e.upper()]):
         a = np.concatenate(per_ep[ep]).astype(np.float64)
         stats[ep] = (a.mean(), a.max())
+        samples[ep] = a
         goal = GOAL_INSTR.get(ep)
         gtxt = f"<= {goal}: mean {ok(a.mean(), goal)}, max {ok(a.max(), goal)}" if goal else ""
         print(
@@ -436,19 +533,22 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print("  (no navigation calls in the vectors)")
 
+    # ---- 4b. the INS beside the navigation filter
+    ins_vs_nav(args, build, meta, samples, painted, frames, edges, np.concatenate(ins_applied))
+
     # ---- 5. host vs QEMU
     print(
         f"\n5. Host (x86-64, glibc) vs QEMU (M4F, newlib) on the same vectors: integers exactly, floats to "
         f"{gv.RTOL_LIBM:g} of each component's scale; pinned libm must be bit-identical"
     )
     print(
-        f"  {'vector':16s} {'records':>7s} {'floats':>7s} {'bit-identical':>13s} {'worst/scale':>11s}  "
+        f"  {'vector':20s} {'records':>7s} {'floats':>7s} {'bit-identical':>13s} {'worst/scale':>11s}  "
         f"{'result':6s} pinned libm"
     )
     for name, (_, cmp, pinned_same) in runs.items():
         same = 100 * cmp.floats_identical / max(cmp.floats, 1)
         print(
-            f"  {name:16s} {cmp.records:7d} {cmp.floats:7d} {same:12.1f}% {cmp.worst:11.1e}  "
+            f"  {name:20s} {cmp.records:7d} {cmp.floats:7d} {same:12.1f}% {cmp.worst:11.1e}  "
             f"{'ok' if cmp.ok() else 'FAIL':6s} {'identical' if pinned_same else 'DIFFERENT'}"
         )
     helpers = defaultdict(set)

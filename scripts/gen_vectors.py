@@ -14,7 +14,8 @@ Scenarios: ``cs_maneuvers`` and ``cs_random`` drive the CS filter directly (10 H
 ground vehicle through steady driving, hard acceleration and braking, turns; random and
 invalid inputs); ``nav_steady``, ``nav_accel_brake``, ``nav_turns``, ``nav_random`` drive the
 navigation top level (400 Hz IMU, 10 Hz GPS with latency, 50 Hz outputs; the random one
-with magnetometer, faults and a 32-bit time wrap).
+with magnetometer, faults and a 32-bit time wrap); ``ins_fixedwing_turns`` drives the
+loosely-coupled INS (mca_ins.h) through 18 s of a simulated fixed-wing flight (``mcahrs.sim``).
 
 This module is also the Python side of the format (op codes read from
 ``c_core/firmware/replay_ops.h``, record layouts, readers) and of the builds and runs,
@@ -92,6 +93,30 @@ OUT_LAYOUT: dict[int, list[tuple[str, str, int]]] = {
         ("flags", "<u4", 1),
         ("n_grav_obs", "<u4", 1),
         ("n_grav_skip", "<u4", 1),
+    ],
+    OP["INS_INIT_PRESET"]: _STATUS,
+    OP["INS_IMU"]: _STATUS,
+    OP["INS_GPS"]: _STATUS,
+    OP["INS_MAG"]: _STATUS,
+    OP["INS_OUTPUT"]: _STATUS
+    + [
+        ("t_us", "<u8", 1),
+        ("q_nb", "<f4", 4),
+        ("euler_rad", "<f4", 3),
+        ("pos_ned_m", "<f4", 3),
+        ("vel_ned_mps", "<f4", 3),
+        ("lat_e7", "<i4", 1),
+        ("lon_e7", "<i4", 1),
+        ("alt_mm", "<i4", 1),
+        ("gyro_bias_rps", "<f4", 3),
+        ("accel_bias_mps2", "<f4", 3),
+        ("p_diag", "<f4", 15),
+        ("gps_t", "<f4", 1),
+        ("gps_m", "<u4", 1),
+        ("flags", "<u4", 1),
+        ("n_gps_upd", "<u4", 1),
+        ("n_gps_rej", "<u4", 1),
+        ("n_gps_skip", "<u4", 1),
     ],
     OP["CAL_SPIN"]: _STATUS,
 }
@@ -836,6 +861,73 @@ def scenario_nav_random() -> VecWriter:
     return w
 
 
+# ----------------------------------------------------------------------------- INS scenario
+
+INS_SECONDS = 18.0  # 400 Hz: 36 B per IMU record, so ~20 s is what fits in MAX_FILE_BYTES
+INS_OUT_EVERY = 8  # an INS_OUTPUT after every 8th IMU step (50 Hz) and after every fix
+INS_MAG_HZ = 10.0  # magnetometer rate (the fixed-wing preset's yaw is course over ground)
+# samples.GNSS_HAS_VEL_NE, _VEL_D, _ALT (1, 2, 4) are mca_nav.h's MCA_FIX_VEL_NE, _VEL_D, _ALT;
+# GNSS_HAS_COURSE (8) has no MCA_FIX_ bit and is dropped
+_GNSS_TO_MCA_FIX = 0x7
+
+
+def scenario_ins_fixedwing_turns() -> VecWriter:
+    """The loosely-coupled INS (fixed-wing preset, course-over-ground yaw) on a simulated flight
+    (``mcahrs.sim`` scenario ``fixedwing_turns``, 400 Hz IMU, 5 Hz GNSS with 100 ms latency,
+    10 Hz magnetometer): level flight at 20 m/s (alignment by timeout, in the air), then a right
+    and a left half circle at 40 deg bank. Events merged as in ``nav_ops``."""
+    from mcahrs.sim import scenario  # here, so the format side of this module needs no simulator
+
+    res = scenario(
+        "fixedwing_turns",
+        seed=7007,
+        duration_s=INS_SECONDS,
+        lead_s=4.0,
+        leg_s=1.5,
+        bank_deg=40.0,
+        circles=(0.5, -0.5),
+        roll_in_s=1.0,
+        imu_rate_hz=400.0,
+        gps_rate_hz=5.0,
+        mag_rate_hz=INS_MAG_HZ,
+    )
+    rec = res.recording
+    t0_us = 30_000_000  # the simulator starts at 0; an IMU clock rarely does
+    imu, gnss, mag = rec.imu, rec.gnss, rec.mag
+    w = VecWriter()
+    w.op("INS_INIT_PRESET", "<3I", 1, KEEP, KEEP)
+    gi = mi = 0
+    for k in range(len(imu)):
+        t = int(imu["t_us"][k]) + t0_us
+        w.op("INS_IMU", "<Q6f", t, *imu["gyro_rps"][k], *imu["accel_mps2"][k])
+        if k % INS_OUT_EVERY == 0:
+            w.op("INS_OUTPUT")
+        t_next = int(imu["t_us"][k + 1]) + t0_us if k + 1 < len(imu) else 2**64 - 1
+        while gi < len(gnss) and int(gnss["t_rx_us"][gi]) + t0_us < t_next:
+            g = gnss[gi]
+            flags = int(g["flags"]) & _GNSS_TO_MCA_FIX
+            w.op(
+                "INS_GPS",
+                "<Q3i6f2I",
+                int(g["t_us"]) + t0_us,
+                int(g["lat_e7"]),
+                int(g["lon_e7"]),
+                int(g["alt_mm"]),
+                *g["vel_ned_mps"],
+                g["h_acc_m"],
+                g["v_acc_m"],
+                g["s_acc_mps"],
+                flags,
+                int(g["fix_type"]),
+            )
+            w.op("INS_OUTPUT")
+            gi += 1
+        while mi < len(mag) and int(mag["t_us"][mi]) + t0_us < t_next:
+            w.op("INS_MAG", "<Q3f", int(mag["t_us"][mi]) + t0_us, *mag["mag_b"][mi])
+            mi += 1
+    return w
+
+
 SCENARIOS = {
     "cs_maneuvers": scenario_cs_maneuvers,
     "cs_random": scenario_cs_random,
@@ -843,6 +935,7 @@ SCENARIOS = {
     "nav_accel_brake": scenario_nav_accel_brake,
     "nav_turns": scenario_nav_turns,
     "nav_random": scenario_nav_random,
+    "ins_fixedwing_turns": scenario_ins_fixedwing_turns,
 }
 
 

@@ -223,6 +223,7 @@ static void calibrate(void)
 static mca_cs3_t g_cs;
 static float g_cs_ws[MCA_CS_WS_LEN];
 static mca_nav_t g_nav;
+static mca_ins_t g_ins;
 
 /* ---------------------------------------------------------------- CS ops (mca_cs.h) */
 
@@ -367,23 +368,29 @@ static void op_nav_imu(in_t *in, out_t *out)
     out_i32(out, (int32_t)st);
 }
 
-/* in: u64 t_us, i32 lat_e7, lon_e7, alt_mm, f32 vel_ned_mps[3], h_acc_m, v_acc_m, s_acc_mps,
- * u32 flags, u32 fix_type. out: i32 status. */
+/* u64 t_us, i32 lat_e7, lon_e7, alt_mm, f32 vel_ned_mps[3], h_acc_m, v_acc_m, s_acc_mps,
+ * u32 flags, u32 fix_type (NAV_GPS and INS_GPS). */
+static void in_gps_fix(in_t *in, mca_gps_fix_t *fix)
+{
+    memset(fix, 0, sizeof(*fix));
+    fix->t_us = in_u64(in);
+    fix->lat_e7 = (int32_t)in_u32(in);
+    fix->lon_e7 = (int32_t)in_u32(in);
+    fix->alt_mm = (int32_t)in_u32(in);
+    in_f32s(in, fix->vel_ned_mps, 3u);
+    fix->h_acc_m = in_f32(in);
+    fix->v_acc_m = in_f32(in);
+    fix->s_acc_mps = in_f32(in);
+    const uint32_t flags = in_u32(in), fix_type = in_u32(in);
+    fix->flags = (uint8_t)(flags > 255u ? 255u : flags);
+    fix->fix_type = (uint8_t)(fix_type > 255u ? 255u : fix_type);
+}
+
+/* in: a fix (in_gps_fix). out: i32 status. */
 static void op_nav_gps(in_t *in, out_t *out)
 {
     mca_gps_fix_t fix;
-    memset(&fix, 0, sizeof(fix));
-    fix.t_us = in_u64(in);
-    fix.lat_e7 = (int32_t)in_u32(in);
-    fix.lon_e7 = (int32_t)in_u32(in);
-    fix.alt_mm = (int32_t)in_u32(in);
-    in_f32s(in, fix.vel_ned_mps, 3u);
-    fix.h_acc_m = in_f32(in);
-    fix.v_acc_m = in_f32(in);
-    fix.s_acc_mps = in_f32(in);
-    const uint32_t flags = in_u32(in), fix_type = in_u32(in);
-    fix.flags = (uint8_t)(flags > 255u ? 255u : flags);
-    fix.fix_type = (uint8_t)(fix_type > 255u ? 255u : fix_type);
+    in_gps_fix(in, &fix);
     mca_status_t st;
     MEASURE(RPL_EP_NAV_GPS, st = mca_nav_gps(&g_nav, &fix));
     out_i32(out, (int32_t)st);
@@ -442,6 +449,101 @@ static void op_nav_output(in_t *in, out_t *out)
     out_raw(out, &o.n_grav_skip, sizeof(o.n_grav_skip));
 }
 
+/* ---------------------------------------------------------------- INS ops (mca_ins.h) */
+
+/* in: u32 preset (0 default, 1 fixed-wing, 2 multirotor; anything else passes a NULL config),
+ * u32 yaw_source, u32 GNSS robust mode (RPL_KEEP: the preset's). out: i32 status. */
+static void op_ins_init_preset(in_t *in, out_t *out)
+{
+    mca_ins_config_t cfg;
+    const uint32_t preset = in_u32(in);
+    const uint32_t yaw = in_u32(in), rob = in_u32(in);
+    if (preset == 1u) {
+        mca_ins_config_fixedwing(&cfg);
+    } else if (preset == 2u) {
+        mca_ins_config_multirotor(&cfg);
+    } else {
+        mca_ins_config_default(&cfg);
+    }
+    if (yaw != RPL_KEEP) {
+        cfg.yaw_source = (uint8_t)(yaw > 255u ? 255u : yaw);
+    }
+    if (rob != RPL_KEEP) {
+        cfg.robust.mode = (uint8_t)(rob > 255u ? 255u : rob);
+    }
+    const mca_ins_config_t *cp = preset <= 2u ? &cfg : NULL;
+    mca_status_t st;
+    MEASURE(RPL_EP_INS_INIT, st = mca_ins_init(&g_ins, cp));
+    out_i32(out, (int32_t)st);
+}
+
+/* in: u64 t_us, f32 gyro_b_rps[3], f32 accel_b_mps2[3]. out: i32 status. */
+static void op_ins_imu(in_t *in, out_t *out)
+{
+    float gyro[3], accel[3];
+    const uint64_t t_us = in_u64(in);
+    in_f32s(in, gyro, 3u);
+    in_f32s(in, accel, 3u);
+    mca_status_t st;
+    MEASURE(RPL_EP_INS_IMU, st = mca_ins_imu(&g_ins, t_us, gyro, accel));
+    out_i32(out, (int32_t)st);
+}
+
+/* in: a fix (in_gps_fix). out: i32 status. */
+static void op_ins_gps(in_t *in, out_t *out)
+{
+    mca_gps_fix_t fix;
+    in_gps_fix(in, &fix);
+    mca_status_t st;
+    MEASURE(RPL_EP_INS_GPS, st = mca_ins_gps(&g_ins, &fix));
+    out_i32(out, (int32_t)st);
+}
+
+/* in: u64 t_us, f32 mag_b[3]. out: i32 status. */
+static void op_ins_mag(in_t *in, out_t *out)
+{
+    float mag[3];
+    const uint64_t t_us = in_u64(in);
+    in_f32s(in, mag, 3u);
+    mca_status_t st;
+    MEASURE(RPL_EP_INS_MAG, st = mca_ins_mag(&g_ins, t_us, mag));
+    out_i32(out, (int32_t)st);
+}
+
+static void out_f32s(out_t *o, const float *v, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        out_f32(o, v[i]);
+    }
+}
+
+/* in: nothing. out: i32 0, then mca_ins_output_t field by field (replay_ops.h). */
+static void op_ins_output(in_t *in, out_t *out)
+{
+    (void)in;
+    mca_ins_output_t o;
+    memset(&o, 0, sizeof(o));
+    MEASURE(RPL_EP_INS_OUTPUT, mca_ins_output(&g_ins, &o));
+    out_i32(out, 0);
+    out_raw(out, &o.t_us, sizeof(o.t_us));
+    out_f32s(out, o.q_nb, 4u);
+    out_f32s(out, o.euler_rad, 3u);
+    out_f32s(out, o.pos_ned_m, 3u);
+    out_f32s(out, o.vel_ned_mps, 3u);
+    out_i32(out, o.lat_e7);
+    out_i32(out, o.lon_e7);
+    out_i32(out, o.alt_mm);
+    out_f32s(out, o.gyro_bias_rps, 3u);
+    out_f32s(out, o.accel_bias_mps2, 3u);
+    out_f32s(out, o.p_diag, (size_t)MCA_INS_NX);
+    out_f32(out, o.gps_t);
+    out_raw(out, &o.gps_m, sizeof(o.gps_m));
+    out_raw(out, &o.flags, sizeof(o.flags));
+    out_raw(out, &o.n_gps_upd, sizeof(o.n_gps_upd));
+    out_raw(out, &o.n_gps_rej, sizeof(o.n_gps_rej));
+    out_raw(out, &o.n_gps_skip, sizeof(o.n_gps_skip));
+}
+
 /* ---------------------------------------------------------------- measurement self-test */
 
 static void op_cal_spin(in_t *in, out_t *out)
@@ -477,6 +579,11 @@ static const op_entry_t k_ops[] = {
     {RPL_OP_NAV_GPS, 13u * 4u, "nav_gps", op_nav_gps},
     {RPL_OP_NAV_MAG, 5u * 4u, "nav_mag", op_nav_mag},
     {RPL_OP_NAV_OUTPUT, 0u, "nav_output", op_nav_output},
+    {RPL_OP_INS_INIT_PRESET, 3u * 4u, "ins_init_preset", op_ins_init_preset},
+    {RPL_OP_INS_IMU, 8u * 4u, "ins_imu", op_ins_imu},
+    {RPL_OP_INS_GPS, 13u * 4u, "ins_gps", op_ins_gps},
+    {RPL_OP_INS_MAG, 5u * 4u, "ins_mag", op_ins_mag},
+    {RPL_OP_INS_OUTPUT, 0u, "ins_output", op_ins_output},
     {RPL_OP_CAL_SPIN, 1u * 4u, "cal_spin", op_cal_spin},
 };
 
@@ -554,6 +661,7 @@ static int run(void)
     cost_put((uint16_t)RPL_COST_META, (uint16_t)RPL_META_INSTR_PER_TICK, rio_instr_per_tick(), 0u, 0u);
     cost_put((uint16_t)RPL_COST_META, (uint16_t)RPL_META_SIZEOF_CS3, (uint32_t)sizeof(mca_cs3_t), 0u, 0u);
     cost_put((uint16_t)RPL_COST_META, (uint16_t)RPL_META_SIZEOF_NAV, (uint32_t)sizeof(mca_nav_t), 0u, 0u);
+    cost_put((uint16_t)RPL_COST_META, (uint16_t)RPL_META_SIZEOF_INS, (uint32_t)sizeof(mca_ins_t), 0u, 0u);
 
     for (g_record = 0u;; ++g_record) {
         uint16_t rh[2];

@@ -56,6 +56,22 @@
  *     u32 flags, u32 n_grav_obs, u32 n_grav_skip */
 #define RPL_OP_NAV_OUTPUT 0x0205u
 
+/* Loosely-coupled INS (mca_ins.h), the reference filter. Output: i32 status (INS_OUTPUT: i32 0,
+ * then the output). */
+/* in: u32 preset (0 default (ground), 1 fixed-wing, 2 multirotor, else a NULL config),
+ *     u32 yaw_source, u32 GNSS robust mode (0xFFFFFFFF: the preset's) */
+#define RPL_OP_INS_INIT_PRESET 0x0301u
+/* in: u64 t_us, f32 gyro_b_rps[3], f32 accel_b_mps2[3] */
+#define RPL_OP_INS_IMU 0x0302u
+/* in: as NAV_GPS */
+#define RPL_OP_INS_GPS 0x0303u
+/* in: u64 t_us, f32 mag_b[3] */
+#define RPL_OP_INS_MAG 0x0304u
+/* in: nothing. out: i32 0, u64 t_us, f32 q_nb[4], euler_rad[3], pos_ned_m[3], vel_ned_mps[3],
+ *     i32 lat_e7, lon_e7, alt_mm, f32 gyro_bias_rps[3], accel_bias_mps2[3], p_diag[15], gps_t,
+ *     u32 gps_m, flags, n_gps_upd, n_gps_rej, n_gps_skip */
+#define RPL_OP_INS_OUTPUT 0x0305u
+
 /* Measurement self-test (no core call; output: i32 status 0). in: u32 n.
  * Runs a known loop of exactly 2n + 1 instructions (fw_spin) and records its measured cost. */
 #define RPL_OP_CAL_SPIN 0x0F01u
@@ -70,6 +86,11 @@
 #define RPL_EP_NAV_GPS 6u
 #define RPL_EP_NAV_MAG 7u
 #define RPL_EP_NAV_OUTPUT 8u
+#define RPL_EP_INS_INIT 9u
+#define RPL_EP_INS_IMU 10u
+#define RPL_EP_INS_GPS 11u
+#define RPL_EP_INS_MAG 12u
+#define RPL_EP_INS_OUTPUT 13u
 #define RPL_EP_CAL_SPIN 15u
 
 /* ---- Cost file: 16-byte records u16 kind, u16 id, u32 a, u32 b, u32 c. ---- */
@@ -86,6 +107,7 @@
 #define RPL_META_SIZEOF_CS3 4u    /* sizeof(mca_cs3_t): the CS filter's whole state */
 #define RPL_META_INSTR_PER_TICK 5u /* instructions per SysTick tick the method assumes */
 #define RPL_META_SIZEOF_NAV 6u    /* sizeof(mca_nav_t): the navigation filter's whole state */
+#define RPL_META_SIZEOF_INS 7u    /* sizeof(mca_ins_t): the INS's whole state */
 
 /* Status of an op the replay itself rejects (never a core status, those are >= 0). */
 #define RPL_STATUS_FORMAT (-1)

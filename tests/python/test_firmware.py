@@ -13,7 +13,9 @@ mps2-an386`` and through the host ``replay``, and compares:
 * the committed host outputs (``*.mcao``) against a fresh host run, to the same tolerance, so a
   change of filter output shows up in review (regenerate with ``python scripts/gen_vectors.py``).
 
-Also: the instruction counter is exact on a known loop, and the image holds no allocator.
+The vectors cover the CS filter, the navigation top level and the loosely-coupled INS
+(``ins_fixedwing_turns``). Also: the instruction counter is exact on a known loop, and the image
+holds no allocator.
 Skips when the cross compiler or QEMU is missing, except on CI (``CI`` set), which installs them.
 """
 
@@ -71,7 +73,8 @@ def _qemu(elf: Path, vec: Path, out: Path, cost: Path | None = None) -> None:
 
 
 def test_vector_files_are_present():
-    assert len(VECTORS) >= 6, "tests/vectors/*.mcav missing: python scripts/gen_vectors.py"
+    assert len(VECTORS) >= 7, "tests/vectors/*.mcav missing: python scripts/gen_vectors.py"
+    assert {v.stem for v in VECTORS} >= set(gv.SCENARIOS), "a scenario's vectors are missing"
     for v in VECTORS:
         assert v.with_suffix(".mcao").exists(), f"{v.name} has no host outputs: python scripts/gen_vectors.py"
         assert (
