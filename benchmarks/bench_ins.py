@@ -401,7 +401,7 @@ def main() -> None:
     if not args.no_real:
         bench_real()
     print("\n5. Cortex-M4F instruction counts of the INS and of the CS + gravity filter, side by side:")
-    print("   python scripts/fw_report.py (section 4b; QEMU -icount, exact counts per IMU step and GNSS update)")
+    print("   python scripts/fw_report.py (section 4b; QEMU -icount, exact counts per step and update)")
     print(f"\nrun time {time.perf_counter() - t0:.1f} s")
 
 
