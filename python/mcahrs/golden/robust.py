@@ -126,37 +126,15 @@ def kf_update(
         NonFiniteError: an input is NaN/Inf, or x+ / P+ would be (step 6).
         SingularError: C = H P H^T + R is not positive definite (step 2).
     """
-    x = _as_float_array("x", x, 1)
-    P = _as_float_array("P", P, 2)
-    H = _as_float_array("H", H, 2)
-    z = _as_float_array("z", z, 1)
-    R = np.array(R, dtype=np.float64)
+    x, P, H, z, R = _checked_inputs(x, P, H, z, R, m_max=None)
     n, m = x.shape[0], z.shape[0]
-    if R.ndim == 1:
-        R = np.diag(R)
-    if m == 0 or P.shape != (n, n) or H.shape != (m, n) or R.shape != (m, m):
-        raise BadArgError(
-            f"inconsistent shapes: x {x.shape}, P {P.shape}, H {H.shape}, z {z.shape}, R {R.shape}"
-        )
-    for name, a in (("x", x), ("P", P), ("H", H), ("z", z), ("R", R)):
-        if not np.all(np.isfinite(a)):
-            raise NonFiniteError(f"{name} is not finite")
-    _check_symmetric("P", P)
-    _check_symmetric("R", R)
 
     # Step 1: innovation and its covariance.
     nu = z - H @ x
     C = H @ P @ H.T + R
-    if not np.all(np.isfinite(C)):
-        raise NonFiniteError("innovation covariance overflowed")
 
     # Step 2: C symmetric positive definite <=> its Cholesky factor exists.
-    try:
-        L = np.linalg.cholesky(C)  # C = L L^T, reads the lower triangle
-    except np.linalg.LinAlgError as exc:
-        raise SingularError("innovation covariance is not positive definite") from exc
-    if not np.all(np.diag(L) > 0.0):  # LAPACK accepts an exact-zero pivot on some builds
-        raise SingularError("innovation covariance is not positive definite")
+    L = _cholesky(C)
 
     # Step 3: T = nu^T C^-1 nu = |L^-1 nu|^2.
     y = _forward_substitution(L, nu)
@@ -490,9 +468,10 @@ def igg_reweight(
 
 
 def _checked_inputs(
-    x: object, P: object, H: object, z: object, R: object
+    x: object, P: object, H: object, z: object, R: object, m_max: int | None = M_MAX
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The argument checks of kf_update, plus m <= M_MAX (the size of the memory)."""
+    """The argument checks of every update: shapes, finiteness, symmetry; and m <= m_max (a robust
+    update's memory holds M_MAX rows; kf_update has no limit)."""
     x = _as_float_array("x", x, 1)
     P = _as_float_array("P", P, 2)
     H = _as_float_array("H", H, 2)
@@ -505,8 +484,8 @@ def _checked_inputs(
         raise BadArgError(
             f"inconsistent shapes: x {x.shape}, P {P.shape}, H {H.shape}, z {z.shape}, R {R.shape}"
         )
-    if m > M_MAX:
-        raise BadArgError(f"a robust update takes at most {M_MAX} rows, got {m}")
+    if m_max is not None and m > m_max:
+        raise BadArgError(f"a robust update takes at most {m_max} rows, got {m}")
     for name, a in (("x", x), ("P", P), ("H", H), ("z", z), ("R", R)):
         if not np.all(np.isfinite(a)):
             raise NonFiniteError(f"{name} is not finite")
@@ -516,7 +495,7 @@ def _checked_inputs(
 
 
 def _cholesky(C: np.ndarray) -> np.ndarray:
-    """Section 1 step 2: C = L L^T, or SINGULAR."""
+    """Section 1 step 2: C = L L^T (reads the lower triangle), or SINGULAR; NONFINITE on overflow."""
     if not np.all(np.isfinite(C)):
         raise NonFiniteError("innovation covariance overflowed")
     try:
