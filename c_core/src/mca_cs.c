@@ -248,7 +248,49 @@ static void axis_predict(mca_cs_axis_t *ax, float t)
     ax->s2_m2ps4 = s2;
 }
 
-mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t)
+static mca_status_t inc_check(const mca_cs_inc_t *inc)
+{
+    if (inc == NULL) {
+        return MCA_OK;
+    }
+    if (!isfinite(inc->dp_m) || !isfinite(inc->dv_mps) || !isfinite(inc->acc_var_m2ps4)) {
+        return MCA_ERR_NONFINITE;
+    }
+    return inc->acc_var_m2ps4 >= 0.0f ? MCA_OK : MCA_ERR_BAD_ARG;
+}
+
+/* The IMU-aided test prior from the posterior about to be predicted over t (ALGORITHMS.md 2).
+ * Only p, v, eps_p, eps_v enter: the IMU increments replace the acceleration state. */
+static void axis_aid(mca_cs_axis_t *ax, float t, const mca_cs_inc_t *inc)
+{
+    const float *x = ax->x, *p = ax->p;
+    const float eb = expf(-t / ax->cfg.tau_p_s), eg = expf(-t / ax->cfg.tau_v_s);
+    /* G = [[1, t, 0, eb, 0], [0, 1, 0, 0, eg]]; s = G P G^T over the four states it reads */
+    const float gp[5] = {1.0f, t, 0.0f, eb, 0.0f};
+    const float gv[5] = {0.0f, 1.0f, 0.0f, 0.0f, eg};
+    float pgp[5], pgv[5]; /* P G^T, columns */
+    for (size_t i = 0; i < 5u; ++i) {
+        pgp[i] = p[5u * i] + t * p[5u * i + 1u] + eb * p[5u * i + 3u];
+        pgv[i] = p[5u * i + 1u] + eg * p[5u * i + 4u];
+    }
+    float spp = 0.0f, spv = 0.0f, svv = 0.0f;
+    for (size_t i = 0; i < 5u; ++i) {
+        spp += gp[i] * pgp[i];
+        spv += gp[i] * pgv[i];
+        svv += gv[i] * pgv[i];
+    }
+    const float sp2 = ax->cfg.sigma_p_m * ax->cfg.sigma_p_m, sv2 = ax->cfg.sigma_v_mps * ax->cfg.sigma_v_mps;
+    const float t2 = t * t, qa = inc->acc_var_m2ps4;
+    ax->aid.y[0] = x[0] + t * x[1] + inc->dp_m + eb * x[3];
+    ax->aid.y[1] = x[1] + inc->dv_mps + eg * x[4];
+    ax->aid.s[0] = spp + sp2 * (1.0f - eb * eb) + qa * 0.25f * t2 * t2;
+    ax->aid.s[1] = spv + qa * 0.5f * t2 * t;
+    ax->aid.s[2] = ax->aid.s[1];
+    ax->aid.s[3] = svv + sv2 * (1.0f - eg * eg) + qa * t2;
+    ax->aid.valid = 1u;
+}
+
+mca_status_t mca_cs_axis_predict_aided(mca_cs_axis_t *ax, float t, const mca_cs_inc_t *inc)
 {
     if (ax == NULL) {
         return MCA_ERR_NULL;
@@ -256,8 +298,21 @@ mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t)
     if (!dt_ok(&ax->cfg, t)) {
         return MCA_ERR_BAD_DT;
     }
+    const mca_status_t st = inc_check(inc);
+    if (st != MCA_OK) {
+        return st;
+    }
+    ax->aid.valid = 0u;
+    if (inc != NULL) {
+        axis_aid(ax, t, inc);
+    }
     axis_predict(ax, t);
     return MCA_OK;
+}
+
+mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t)
+{
+    return mca_cs_axis_predict_aided(ax, t, NULL);
 }
 
 /* Validate one axis' update inputs (docs/ALGORITHMS.md 2, Update). */
@@ -306,7 +361,31 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
     } else {
         r[0] = (mask & MCA_CS_POS) != 0u ? r_p : r_v;
     }
-    return mca_kf_update(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs, ws, MCA_CS_WS_LEN, rep);
+    if (ax->aid.valid == 0u) {
+        return mca_kf_update(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs, ws, MCA_CS_WS_LEN,
+                             rep);
+    }
+    /* test z against the IMU-aided prediction: rows of the mask, covariance s + R */
+    mca_kf_test_t test;
+    size_t rows[MCA_CS_NZ], k = 0u;
+    if ((mask & MCA_CS_POS) != 0u) {
+        rows[k++] = 0u;
+    }
+    if ((mask & MCA_CS_VEL) != 0u) {
+        rows[k++] = 1u;
+    }
+    for (size_t i = 0; i < m; ++i) {
+        test.nu[i] = z[i] - ax->aid.y[rows[i]];
+        for (size_t j = 0; j < m; ++j) {
+            test.c[i * m + j] = ax->aid.s[rows[i] * MCA_CS_NZ + rows[j]] + r[i * m + j];
+        }
+    }
+    const mca_status_t su = mca_kf_update_tested(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs,
+                                                 &test, ws, MCA_CS_WS_LEN, rep);
+    if (su == MCA_OK) {
+        ax->aid.valid = 0u;
+    }
+    return su;
 }
 
 mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
@@ -334,7 +413,7 @@ mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca
     return MCA_OK;
 }
 
-mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t)
+mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t, const mca_cs_inc_t *const inc[3])
 {
     if (cs == NULL) {
         return MCA_ERR_NULL;
@@ -343,11 +422,20 @@ mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t)
         if (!dt_ok(&cs->axis[i].cfg, t)) {
             return MCA_ERR_BAD_DT;
         }
+        const mca_status_t st = inc_check(inc != NULL ? inc[i] : NULL);
+        if (st != MCA_OK) {
+            return st;
+        }
     }
     for (size_t i = 0; i < 3u; ++i) {
-        axis_predict(&cs->axis[i], t);
+        (void)mca_cs_axis_predict_aided(&cs->axis[i], t, inc != NULL ? inc[i] : NULL); /* checked above */
     }
     return MCA_OK;
+}
+
+mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t)
+{
+    return mca_cs3_predict_aided(cs, t, NULL);
 }
 
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],

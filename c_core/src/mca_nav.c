@@ -41,6 +41,8 @@ void mca_nav_config_default(mca_nav_config_t *c)
     c->mag_yaw_sigma_rad = 0.05f;
     c->cog_min_speed_mps = 3.0f;
     c->cog_sigma0_rad = 0.05f;
+    c->gps_test_imu = 1u;
+    c->imu_acc_sigma_mps2 = 0.3f;
     c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
 }
 
@@ -105,7 +107,8 @@ mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
         !pos(c->init_still_s) || !nonneg(c->init_gyro_still_rps) || !nonneg(c->init_acc_still_mps2) ||
         !pos(c->init_timeout_s) || !pos(c->accel_sat_mps2) || !pos(c->gps_pos_sigma_m) ||
         !pos(c->gps_alt_sigma_m) || !pos(c->gps_vel_sigma_mps) || !isfinite(c->mag_declination_rad) ||
-        !pos(c->mag_yaw_sigma_rad) || !nonneg(c->cog_min_speed_mps) || !pos(c->cog_sigma0_rad)) {
+        !pos(c->mag_yaw_sigma_rad) || !nonneg(c->cog_min_speed_mps) || !pos(c->cog_sigma0_rad) ||
+        c->gps_test_imu > 1u || !nonneg(c->imu_acc_sigma_mps2)) {
         return MCA_ERR_BAD_CONFIG;
     }
     return MCA_OK;
@@ -297,6 +300,96 @@ static mca_status_t yaw_obs(mca_nav_t *nav, float psi_m, float r, const float q_
     return st;
 }
 
+/* No yaw observation in the last 10 s of IMU time (always so with no yaw source). */
+static int yaw_unobserved(const mca_nav_t *nav)
+{
+    return nav->cfg.yaw_source == MCA_YAW_NONE || !nav->have_yaw_obs ||
+           nav->t_imu_us - nav->t_lastyaw_us > (uint64_t)YAW_STALE_US;
+}
+
+/* dp += v o + a o^2 / 2 with v the running dv, then dv += a o (one ring interval). */
+static void integrate(mca_cs_inc_t inc[3], const float a[3], float o)
+{
+    for (size_t i = 0; i < 3u; ++i) {
+        inc[i].dp_m += inc[i].dv_mps * o + 0.5f * a[i] * o * o;
+        inc[i].dv_mps += a[i] * o;
+    }
+}
+
+/* NED acceleration of a history entry: C_nb(q) f + [0, 0, g] (DESIGN.md 2). */
+static void entry_acc(const mca_nav_t *nav, const mca_hist_entry_t *e, float a[3])
+{
+    mca_quat_rotate(a, e->q_nb, e->f_b_mps2);
+    a[2] += nav->g_mps2;
+}
+
+/* IMU velocity and position increments over (t0, t1] from the history ring into inc[i].dv_mps
+ * and dp_m (ALGORITHMS.md 8, GPS step 3): entry k covers (t_k-1, t_k] with its mean f and its
+ * q; past the newest entry its acceleration is held for at most one entry interval. 1 when the
+ * ring covers the interval (the oldest entry ends at or before t0) and no entry used is
+ * saturated; 0 otherwise. */
+static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_cs_inc_t inc[3])
+{
+    if (nav->hist_count < 2u || t1 - t0 > (uint64_t)INT32_MAX) {
+        return 0;
+    }
+    const uint32_t t1_32 = (uint32_t)t1;
+    const int32_t r0 = -(int32_t)(uint32_t)(t1 - t0); /* times relative to t1, wrap-safe */
+    const uint16_t oldest = (uint16_t)((nav->hist_head + MCA_HIST_LEN - nav->hist_count) % MCA_HIST_LEN);
+    int32_t prev = (int32_t)(nav->hist[oldest].t_us - t1_32);
+    if (prev > r0) {
+        return 0;
+    }
+    memset(inc, 0, 3u * sizeof(*inc));
+    float a[3];
+    for (uint16_t k = 1; k < nav->hist_count; ++k) {
+        const mca_hist_entry_t *e = &nav->hist[(oldest + k) % MCA_HIST_LEN];
+        const int32_t end = (int32_t)(e->t_us - t1_32);
+        const int32_t lo = prev > r0 ? prev : r0;
+        const int32_t hi = end < 0 ? end : 0;
+        prev = end;
+        if (hi <= lo) {
+            continue;
+        }
+        if (e->saturated) {
+            return 0;
+        }
+        entry_acc(nav, e, a);
+        integrate(inc, a, (float)(hi - lo) * 1e-6f);
+    }
+    if (prev < 0) {
+        const mca_hist_entry_t *e = hist_newest(nav);
+        if (-prev > (int32_t)MCA_HIST_DT_US || e->saturated) {
+            return 0;
+        }
+        entry_acc(nav, e, a);
+        integrate(inc, a, (float)(-prev) * 1e-6f);
+    }
+    return 1;
+}
+
+/* CS predict over t to the fix at t_fix, IMU-aided on the axes where that is possible
+ * (ALGORITHMS.md 8, GPS step 3). */
+static mca_status_t cs_predict(mca_nav_t *nav, uint64_t t_fix, float t)
+{
+    mca_cs_inc_t inc[3];
+    const mca_cs_inc_t *use[3] = {NULL, NULL, NULL};
+    if (nav->cfg.gps_test_imu && nav->aligned && hist_increments(nav, nav->t_lastfix_us, t_fix, inc)) {
+        const float *pa = nav->att.p;
+        const float g2 = nav->g_mps2 * nav->g_mps2;
+        const float s2 = nav->cfg.imu_acc_sigma_mps2 * nav->cfg.imu_acc_sigma_mps2;
+        /* tilt error: g d theta horizontally; yaw error turns the mean horizontal acceleration */
+        const float ah2 = (inc[0].dv_mps * inc[0].dv_mps + inc[1].dv_mps * inc[1].dv_mps) / (t * t);
+        const float var_h = s2 + g2 * (pa[0] + pa[7]) + ah2 * pa[14];
+        const int yaw_ok = !yaw_unobserved(nav);
+        for (size_t i = 0; i < 3u; ++i) {
+            inc[i].acc_var_m2ps4 = i < 2u ? var_h : s2;
+            use[i] = (i == 2u || yaw_ok) ? &inc[i] : NULL;
+        }
+    }
+    return mca_cs3_predict_aided(&nav->cs, t, use);
+}
+
 static int gps_lost(const mca_nav_t *nav, uint64_t t)
 {
     return !nav->have_fix || (t > nav->t_lastfix_us && t - nav->t_lastfix_us > us(nav->cfg.gps_timeout_s));
@@ -463,7 +556,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel);
             memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
         } else {
-            mca_status_t st = mca_cs3_predict(&nav->cs, t);
+            mca_status_t st = cs_predict(nav, fix->t_us, t);
             if (st != MCA_OK) {
                 return st;
             }
@@ -615,8 +708,7 @@ void mca_nav_output(const mca_nav_t *nav, mca_nav_output_t *out)
     f |= nav->aligned ? (uint32_t)MCA_FLAG_ALIGNED : 0u;
     f |= nav->home_set ? (uint32_t)MCA_FLAG_HOME_SET : 0u;
     f |= gps_lost(nav, nav->t_imu_us) ? (uint32_t)MCA_FLAG_GPS_LOST : 0u;
-    if (nav->cfg.yaw_source == MCA_YAW_NONE || !nav->have_yaw_obs ||
-        nav->t_imu_us - nav->t_lastyaw_us > (uint64_t)YAW_STALE_US) {
+    if (yaw_unobserved(nav)) {
         f |= MCA_FLAG_YAW_UNOBSERVED;
     }
     out->flags = f;

@@ -253,9 +253,11 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
 }
 
 /* AKF (paper 004), steps 1-3; step 4 is the common update with R* = R + diag(d). */
+/* nu_s: the innovation the row statistics follow (the test innovation when one is given);
+ * nu: the update's own, for the Q window (ALGORITHMS.md 5, test innovation). */
 static void plan_akf(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_robust_state_t *rs, size_t n,
-                     size_t m, const float *h, const float *pht, const float *r, const float *nu, float t_stat,
-                     float *d)
+                     size_t m, const float *h, const float *pht, const float *r, const float *nu,
+                     const float *nu_s, float t_stat, float *d)
 {
     const float b = rc->akf_forget;
     /* step 2: detection with the chi2_m(1e-2) test; R* = R + diag(s_i) with the new s_i */
@@ -263,7 +265,7 @@ static void plan_akf(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_ro
     float tr_r = 0.0f, tr_rs = 0.0f, nu2 = 0.0f, tr_hph = 0.0f;
     for (size_t i = 0; i < m; ++i) {
         float r_new, s_new;
-        akf_row(rs, b, i, nu[i], &r_new, &s_new);
+        akf_row(rs, b, i, nu_s[i], &r_new, &s_new);
         d[i] = det ? s_new : 0.0f;
         tr_r += r[i * m + i];
         tr_rs += r[i * m + i] + d[i];
@@ -470,6 +472,14 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
                            mca_robust_state_t *rs, float *ws, size_t ws_len,
                            mca_update_report_t *rep)
 {
+    return mca_kf_update_tested(x, p, n, h, z, r, m, rc, rs, NULL, ws, ws_len, rep);
+}
+
+mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, const float *z,
+                                  const float *r, size_t m, const mca_robust_config_t *rc,
+                                  mca_robust_state_t *rs, const mca_kf_test_t *test, float *ws,
+                                  size_t ws_len, mca_update_report_t *rep)
+{
     if (x == NULL || p == NULL || h == NULL || z == NULL || r == NULL || ws == NULL) {
         return MCA_ERR_NULL;
     }
@@ -493,13 +503,14 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
         }
     }
     if (!mca_all_finite(z, m) || !mca_all_finite(r, m * m) || !mca_all_finite(x, n) ||
-        !mca_all_finite(p, n * n) || !mca_all_finite(h, m * n)) {
+        !mca_all_finite(p, n * n) || !mca_all_finite(h, m * n) ||
+        (test != NULL && (!mca_all_finite(test->nu, m) || !mca_all_finite(test->c, m * m)))) {
         return MCA_ERR_NONFINITE;
     }
     /* Scratch layout (MCA_KF_WS_LEN(n, m) floats): pn (n x n); kk (n x m): P H^T, then K in
      * place; a (n x m): U = P H^T for the Joseph step; b (n x m): K S; t (n x m): C^-1 nu,
-     * then the per-row R increments d (m); c, l (m x m); xn (n); y (m). Every m-vector fits
-     * in t (n >= 1). */
+     * then the per-row R increments d (m); c, l (m x m); xn (n); y (m); ct, lt (m x m): the
+     * test covariance (IGG-III re-weights it) and its factor. Every m-vector fits in t (n >= 1). */
     float *pn = ws;
     float *kk = pn + n * n;
     float *a = kk + n * m;
@@ -509,6 +520,8 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
     float *l = c + m * m;
     float *xn = l + m * m;
     float *y = xn + n;
+    float *ct = y + m;
+    float *lt = ct + m * m;
 
     /* nu = z - H x -> y; C = H P H^T + R (ALGORITHMS.md 1, step 1) */
     mca_mat_mul(y, h, x, m, n, 1u);
@@ -544,8 +557,27 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
     for (size_t i = 0; i < m; ++i) {
         t_stat += y[i] * t[i];
     }
+    /* The innovation the mode tests: the update's own, or the caller's test innovation. */
+    const float *nu_m = y;
+    float *c_m = c;
+    if (test != NULL) {
+        memcpy(ct, test->c, m * m * sizeof(float));
+        mca_mat_symmetrize(ct, m);
+        if (mca_cholesky(lt, ct, m) != MCA_OK) {
+            return MCA_ERR_SINGULAR;
+        }
+        memcpy(t, test->nu, m * sizeof(float));
+        mca_cholesky_solve(lt, t, m);
+        t_stat = 0.0f;
+        for (size_t i = 0; i < m; ++i) {
+            t_stat += test->nu[i] * t[i];
+        }
+        nu_m = test->nu;
+        c_m = ct;
+    }
     if (rep != NULL) {
         rep->t_stat = t_stat;
+        rep->tested = test != NULL ? 1u : 0u;
     }
     if (mode != MCA_ROBUST_PLAIN && !isfinite(t_stat)) {
         return MCA_ERR_NONFINITE; /* every robust test needs T (plain mode never reads it) */
@@ -564,13 +596,13 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
         plan_fta(&pl, m, t_stat);
         break;
     case MCA_ROBUST_AKF:
-        plan_akf(&pl, rc, rs, n, m, h, kk, r, y, t_stat, d);
+        plan_akf(&pl, rc, rs, n, m, h, kk, r, y, nu_m, t_stat, d);
         break;
     case MCA_ROBUST_FUZZY:
         plan_fuzzy(&pl, rc, rs, m, t_stat);
         break;
     case MCA_ROBUST_IGG3:
-        plan_igg(&pl, rc, m, r, y, c, d, rep != NULL ? rep->w : NULL);
+        plan_igg(&pl, rc, m, r, nu_m, c_m, d, rep != NULL ? rep->w : NULL);
         break;
     case MCA_ROBUST_PLAIN:
     default:
@@ -582,7 +614,7 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
      * it is rejecting (a maneuver taken for an outlier) cannot run open loop for ever. */
     const int reset = pl.rejected && rs != NULL && rc != NULL && rc->reject_reset_n > 0u &&
                       (unsigned)rs->n_reject + 1u >= (unsigned)rc->reject_reset_n;
-    int c_has_d = mode == MCA_ROBUST_IGG3;
+    int c_has_d = mode == MCA_ROBUST_IGG3 && test == NULL; /* IGG-III re-weighted c_m */
     if (reset) {
         memset(&pl, 0, sizeof(pl));
         pl.gamma = 1.0f;
@@ -618,7 +650,7 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
     } else if (mode == MCA_ROBUST_AKF) {
         for (size_t i = 0; i < m; ++i) {
             float r_new, s_new;
-            akf_row(rs, rc->akf_forget, i, y[i], &r_new, &s_new);
+            akf_row(rs, rc->akf_forget, i, nu_m[i], &r_new, &s_new);
             rs->nu_mean[i] = r_new;
             rs->nu_var[i] = s_new;
         }

@@ -16,6 +16,6 @@
 #define MCA_CS_NZ 2
 
 /** Scratch floats a Kalman update of n states and m measurements needs (mca_kf_update). */
-#define MCA_KF_WS_LEN(n, m) ((n) * (n) + 4 * (n) * (m) + 2 * (m) * (m) + (n) + (m))
+#define MCA_KF_WS_LEN(n, m) ((n) * (n) + 4 * (n) * (m) + 4 * (m) * (m) + (n) + (m))
 
 #endif /* MCA_CONFIG_H */

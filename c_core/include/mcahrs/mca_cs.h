@@ -42,12 +42,33 @@ typedef struct {
     mca_robust_config_t robust; /**< robust/adaptive mode of the GPS updates */
 } mca_cs_config_t;
 
+/**
+ * IMU-aided prediction of one axis' GPS measurement [p + eps_p, v + eps_v] at the end of a
+ * predict (docs/ALGORITHMS.md 2, "IMU-aided test prior"): the posterior before the predict
+ * moved with the IMU's velocity and position increments instead of the constant-acceleration
+ * step. The robust mode of the next update tests the GPS against it.
+ */
+typedef struct {
+    float y[MCA_CS_NZ];              /**< predicted position (m) and velocity (m/s) measurement */
+    float s[MCA_CS_NZ * MCA_CS_NZ];  /**< its covariance without R, row-major */
+    uint8_t valid;                   /**< set by an aided predict, cleared by any other predict and by
+                                          the update that uses it */
+} mca_cs_aid_t;
+
+/** IMU increments over one predict interval, for mca_cs_axis_predict_aided. */
+typedef struct {
+    float dp_m;          /**< position increment minus the initial velocity's share, int int a dt dt */
+    float dv_mps;        /**< velocity increment, int a dt */
+    float acc_var_m2ps4; /**< variance of the IMU acceleration error over the interval, >= 0 */
+} mca_cs_inc_t;
+
 /** One axis. Owns its state; scratch is passed in by the caller (see mca_cs3_t). */
 typedef struct {
     float x[MCA_CS_NX];             /**< [p, v, a, eps_p, eps_v] */
     float p[MCA_CS_NX * MCA_CS_NX]; /**< covariance, row-major, symmetric */
     float s2_m2ps4;                 /**< maneuver variance used by the last predict */
     mca_robust_state_t rs;          /**< robust-mode memory; rs.q_scale scales Q at predict */
+    mca_cs_aid_t aid;               /**< IMU-aided test prior of the next update */
     mca_cs_config_t cfg;
 } mca_cs_axis_t;
 
@@ -82,12 +103,26 @@ void mca_cs_transition(const mca_cs_config_t *cfg, float t_s, float s2_m2ps4, fl
 /** Singer 3 x 3 process noise block for alpha, t_s, and q = 2 alpha s2 (row-major). */
 void mca_cs_singer_q(float alpha_ps, float t_s, float s2_m2ps4, float q33[9]);
 
-/** Predict one axis over t_s. @return MCA_ERR_BAD_DT (state unchanged) or MCA_OK. */
+/** Predict one axis over t_s (clears the aid). @return MCA_ERR_BAD_DT (state unchanged) or MCA_OK. */
 mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t_s);
 
 /**
+ * Predict one axis over t_s and, with inc non-NULL, first set its IMU-aided test prior from
+ * the posterior being predicted (docs/ALGORITHMS.md 2): y = [p + v t + dp + e_b eps_p,
+ * v + dv + e_g eps_v], s = G P G^T + diag(sigma_p^2 (1 - e_b^2), sigma_v^2 (1 - e_g^2)) +
+ * acc_var [[t^4/4, t^3/2], [t^3/2, t^2]], G = [[1, t, 0, e_b, 0], [0, 1, 0, 0, e_g]],
+ * e_b = exp(-beta t), e_g = exp(-gamma t). inc NULL: mca_cs_axis_predict.
+ * Cost: the predict plus ~60 multiply-adds and two expf.
+ * @return MCA_ERR_BAD_DT, MCA_ERR_NONFINITE (inc not finite, or acc_var < 0: BAD_ARG), MCA_OK;
+ *         the axis is unchanged on error.
+ */
+mca_status_t mca_cs_axis_predict_aided(mca_cs_axis_t *ax, float t_s, const mca_cs_inc_t *inc);
+
+/**
  * Update one axis with position z_p_m (variance r_p) and/or velocity z_v_mps (variance r_v)
- * as selected by mask (MCA_CS_POS | MCA_CS_VEL). Unused values are ignored.
+ * as selected by mask (MCA_CS_POS | MCA_CS_VEL). Unused values are ignored. When the last
+ * predict was aided (ax->aid.valid), the robust mode tests z minus the aid's prediction with
+ * covariance s + R (mca_kf_update_tested) and the aid is consumed; else mca_kf_update.
  * @param[out] ws  MCA_CS_WS_LEN floats of scratch
  * @return MCA_ERR_BAD_MASK, MCA_ERR_NONFINITE, MCA_ERR_BAD_ARG (variance <= 0),
  *         MCA_ERR_SINGULAR, or MCA_OK. On error the axis is unchanged.
@@ -101,6 +136,13 @@ mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca
 
 /** Predict all three axes over t_s; a bad t_s changes none. */
 mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t_s);
+
+/**
+ * mca_cs3_predict with an IMU-aided test prior on the axes whose inc[i] is given (inc may be
+ * NULL, or hold NULL entries: those axes predict plainly). Everything is checked first; on
+ * error no axis changes.
+ */
+mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t_s, const mca_cs_inc_t *const inc[3]);
 
 /**
  * Update the three axes; per-axis masks, an axis with mask 0 is skipped, all-zero is

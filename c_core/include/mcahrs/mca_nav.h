@@ -66,6 +66,10 @@ typedef struct {
     float mag_yaw_sigma_rad;    /**< magnetometer heading std */
     float cog_min_speed_mps;    /**< course over ground used above this speed */
     float cog_sigma0_rad;       /**< base course-over-ground std */
+    uint8_t gps_test_imu;       /**< 1: robust modes test each CS update against the IMU-aided
+                                     prediction (ALGORITHMS.md 8, GPS step 3); 0: the CS's own */
+    float imu_acc_sigma_mps2;   /**< IMU acceleration error std of that prediction (bias, vibration,
+                                     ring approximation; tilt and yaw errors are added), >= 0 */
 } mca_nav_config_t;
 
 /** One GPS fix. Absent accuracy: NaN or <= 0. */

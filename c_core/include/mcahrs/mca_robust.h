@@ -74,7 +74,20 @@ typedef struct {
     uint8_t rejected;                           /**< the update was not applied (x, P unchanged) */
     uint8_t alarm;                              /**< fuzzy detector alarm state after this update */
     uint8_t reset;                              /**< lock-up guard fired: memory cleared, plain update */
+    uint8_t tested;                             /**< t_stat (and the mode's decisions) came from a test
+                                                     innovation (mca_kf_update_tested), not from nu, c */
 } mca_update_report_t;
+
+/**
+ * A test innovation: what a robust mode tests instead of the update's own innovation
+ * (docs/ALGORITHMS.md 5, "Test innovation"). The navigation filter predicts the GPS
+ * measurement with the IMU for it, so a maneuver, which the accelerometer sees, is not taken
+ * for an outlier while the filter's own constant-acceleration prediction lags it.
+ */
+typedef struct {
+    float nu[MCA_MEAS_MAX];                 /**< measured minus test-predicted, m values */
+    float c[MCA_MEAS_MAX * MCA_MEAS_MAX];   /**< its covariance incl. R, m x m, row stride m, SPD */
+} mca_kf_test_t;
 
 /**
  * Defaults: plain mode, and the papers' parameters for the others (ALGORITHMS.md 5).
@@ -159,5 +172,22 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
                            const float *r, size_t m, const mca_robust_config_t *rc,
                            mca_robust_state_t *rs, float *ws, size_t ws_len,
                            mca_update_report_t *rep);
+
+/**
+ * mca_kf_update whose robust mode tests a given innovation instead of its own
+ * (docs/ALGORITHMS.md 5, "Test innovation"): T = nu_t^T C_t^-1 nu_t decides FTA, AKF detection
+ * and fuzzy; IGG-III weights rows by |nu_t,i| / sqrt(C_t,ii); AKF's row statistics (R*) follow
+ * nu_t. The gain, the state correction, Joseph and AKF's Q window use the nominal nu and C as
+ * in mca_kf_update, which is this function with test NULL. rep->t_stat is the tested T and
+ * rep->tested is 1; rep->nu and rep->c stay the nominal ones.
+ * Cost: mca_kf_update plus one m x m Cholesky and solve (m^3/6 + m^2 multiply-adds, m sqrtf).
+ * @param[in] test test innovation and covariance (NULL: test the update's own); must be finite
+ *                 (MCA_ERR_NONFINITE) with c_t positive definite (MCA_ERR_SINGULAR); read only.
+ * Every other parameter, error and guarantee as mca_kf_update.
+ */
+mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, const float *z,
+                                  const float *r, size_t m, const mca_robust_config_t *rc,
+                                  mca_robust_state_t *rs, const mca_kf_test_t *test, float *ws,
+                                  size_t ws_len, mca_update_report_t *rep);
 
 #endif /* MCA_ROBUST_H */
