@@ -580,6 +580,7 @@ def _report_dict(rep: Any) -> dict[str, Any]:
         "detected": bool(rep.detected),
         "rejected": bool(rep.rejected),
         "reset": bool(rep.reset),
+        "tested": bool(rep.tested),
         "alarm": bool(rep.alarm),
     }
 
@@ -592,8 +593,11 @@ def kf_update(
     R: Any,
     cfg: Any = None,  # noqa: N803 - P, H, R as in the text
     state: RobustFilterState | None = None,
+    test: tuple[Any, Any] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
-    """One ``mca_kf_update`` on float32 copies: ``x`` (n), ``P`` (n x n), ``H`` (m x n, or (n,) for
+    """One ``mca_kf_update`` (``mca_kf_update_tested`` with ``test = (nu_t, C_t)``: the robust
+    mode tests that innovation, m and m x m, instead of the update's own) on float32 copies:
+    ``x`` (n), ``P`` (n x n), ``H`` (m x n, or (n,) for
     m = 1), ``z`` (m), ``R`` (m x m, or (m,) for a diagonal). ``cfg`` from :func:`robust_config`
     (None: plain); ``state`` a :class:`RobustFilterState`, required by 'akf' and 'fuzzy', updated
     in place. Returns ``(x_new, P_new, report)``; the inputs are not modified. Errors raise the
@@ -615,7 +619,14 @@ def kf_update(
     ws_len = int(lib.mca_kf_ws_len(n, m))
     ws = np.empty(max(ws_len, 1), np.float32)
     rep = ffi.new("mca_update_report_t *")
-    st = lib.mca_kf_update(
+    tst = ffi.NULL
+    if test is not None:
+        nu_t = _as_f32(np.asarray(test[0], dtype=np.float32).reshape(-1), (m,), "test nu")
+        c_t = _as_f32(np.asarray(test[1], dtype=np.float32), (m, m), "test C")
+        tst = ffi.new("mca_kf_test_t *")
+        tst.nu[0:m] = [float(v) for v in nu_t]
+        tst.c[0 : m * m] = [float(v) for v in c_t.reshape(-1)]
+    st = lib.mca_kf_update_tested(
         _fptr(xa),
         _fptr(pa),
         n,
@@ -625,6 +636,7 @@ def kf_update(
         m,
         cfg if cfg is not None else ffi.NULL,
         state.c if state is not None else ffi.NULL,
+        tst,
         _fptr(ws),
         ws_len,
         rep,

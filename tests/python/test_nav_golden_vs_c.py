@@ -288,7 +288,10 @@ TOL: dict[str, float] = {
     # NIS = nu^T C^-1 nu with nu a small difference of float32 angles (relative to max(T, 1));
     # measured 7.5e-4 (fixedwing_turns).
     "rp_T_rel": 5e-3,
-    "gps_T_rel": 5e-4,  # GPS NIS from float32 NED offsets; measured 6.4e-5
+    # GPS NIS, since the IMU-aided test (ALGORITHMS.md 8, GPS step 3) the aided one: its velocity
+    # variance (~0.012 m^2/s^2) is ~5x below the CS's own, so float32 velocity rounding (3e-5 m/s
+    # at 30 m/s) moves T by ~2 nu dnu / C = 5e-4; measured 5.8e-4 (6.4e-5 on the CS's own T)
+    "gps_T_rel": 1.5e-3,
 }
 
 # Discrete differences allowed per case, as events.

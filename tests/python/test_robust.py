@@ -206,7 +206,12 @@ def _fuzzy_d_raw(gstate_before: object, rg: object) -> float:
     return 0.5 * float(gstate_before.d_k) + td1 / td3 * dh + 0.5 * dm + dd
 
 
-def _run_sequence(spec: dict[str, object], n: int, m: int, seed: int, steps: int = STEPS) -> Gaps:
+def _run_sequence(
+    spec: dict[str, object], n: int, m: int, seed: int, steps: int = STEPS, tested: bool = False
+) -> Gaps:
+    """C vs golden over a random sequence. ``tested``: every update gets a test innovation
+    (ALGORITHMS.md 5) from a second, independently perturbed prediction, as the navigation
+    filter's IMU-aided one is, with its own covariance."""
     rng = np.random.default_rng(seed)
     gcfg, ccfg = _golden_cfg(spec), _c_cfg(spec)
     gstate, cstate = gr.RobustState(), core.RobustFilterState()
@@ -238,10 +243,20 @@ def _run_sequence(spec: dict[str, object], n: int, m: int, seed: int, steps: int
             z += rows * rng.choice([-1.0, 1.0], m) * rng.uniform(1.5, 40.0, m) * sig
         x32, p32, h32, z32, r32 = (_f32(v) for v in (x, 0.5 * (p + p.T), h, z, r))
         p32 = 0.5 * (p32 + p32.T)  # exactly symmetric in float32 too
+        test = None
+        if tested:
+            dx = rng.multivariate_normal(np.zeros(n), 0.3 * p)
+            nu_t = _f32(z32 - h32 @ (x32 + dx))
+            c_t = h @ (1.3 * p) @ h.T + r + np.diag(rng.uniform(0.0, 0.2, m))
+            test = (nu_t, _f32(0.5 * (c_t + c_t.T)))
         before = _state_snapshot(gstate)
-        xg, pg, rg = gr.robust_update(x32, p32, h32, z32, r32, gcfg, gstate)
-        xc, pc, rc = core.kf_update(x32, p32, h32, z32, r32, ccfg, cstate)
-        skip, diverged = _near_tie(spec, m, rg, before)
+        xg, pg, rg = gr.robust_update(x32, p32, h32, z32, r32, gcfg, gstate, test=test)
+        xc, pc, rc = core.kf_update(x32, p32, h32, z32, r32, ccfg, cstate, test=test)
+        assert rc["tested"] == tested and rg.tested == tested
+        tie_view = rg
+        if test is not None:  # IGG-III ties are in the tested residuals
+            tie_view = type("R", (), {"m": rg.m, "T": rg.T, "nu": test[0], "C": test[1]})()
+        skip, diverged = _near_tie(spec, m, tie_view, before)
         if diverged:
             gaps.skipped += steps - k
             break
@@ -283,6 +298,20 @@ def _state_snapshot(s: object) -> object:
 
 
 _ALL_GAPS: dict[str, Gaps] = {}
+
+
+@needs_golden
+@pytest.mark.parametrize("n,m", [(5, 2), (6, 2)])
+@pytest.mark.parametrize("name", list(CONFIGS))
+def test_c_matches_golden_with_a_test_innovation(name: str, n: int, m: int) -> None:
+    """mca_kf_update_tested against the golden robust_update(test=...): the decisions come from
+    the test innovation, the update from the nominal one, on both sides."""
+    spec = CONFIGS[name]
+    seed = 7000 + 1000 * n + 10 * m + list(CONFIGS).index(name)
+    gaps = _run_sequence(spec, n, m, seed, tested=True)
+    assert gaps.compared >= 0.9 * STEPS, f"{name} n={n} m={m}: only {gaps.compared} epochs compared"
+    print(f"{name:14s} n={n:2d} m={m} tested: x {gaps.x:.2e} P {gaps.P:.2e} T {gaps.T:.2e} "
+          f"w {gaps.w:.2e} compared {gaps.compared} skipped {gaps.skipped}")
 
 
 @needs_golden
@@ -410,3 +439,41 @@ def test_lock_up_guard_replaces_the_nth_rejection_by_a_plain_update(mode: str, r
         assert resets_c[k] and not rejected_c[k]  # the 5th rejection in a row became a plain update
         assert not any(resets_c[:k])
         assert np.abs(xc[0] + xc[3] - 60.0) < np.abs(x[0] + x[3] - 60.0)  # it moved towards the fixes
+
+
+def test_decisions_follow_the_test_innovation_and_the_update_the_nominal_one() -> None:
+    """mca_kf_update_tested (ALGORITHMS.md 5, test innovation): a gross nominal innovation with a
+    quiet test one is a plain update (a maneuver the test prediction saw), a quiet nominal one
+    with a gross test innovation is an outlier (rejected by fuzzy, row removed by IGG-III)."""
+    x = np.zeros(5, np.float32)
+    p = np.diag([4.0, 1.0, 1.0, 0.5, 0.01]).astype(np.float32)
+    h = np.array([[1, 0, 0, 1, 0], [0, 1, 0, 0, 1]], np.float32)
+    r = np.array([1.0, 0.01], np.float32)
+    c = h @ p @ h.T + np.diag(r)
+    quiet = (np.array([0.5, 0.05], np.float32), c)
+    gross = (np.array([0.5, 30.0], np.float32), c)  # T ~ 900 > TD3
+    z_gross, z_quiet = np.array([0.5, 30.0], np.float32), np.array([0.5, 0.05], np.float32)
+    x_plain, p_plain, _ = core.kf_update(x, p, h, z_gross, r)
+    x_fta, p_fta, rep = core.kf_update(x, p, h, z_gross, r, core.robust_config("fta"), None, test=quiet)
+    assert rep["tested"] and not rep["detected"] and rep["factor"] == 1.0
+    assert rep["T"] == pytest.approx(float(quiet[0] @ np.linalg.solve(c, quiet[0])), rel=1e-5)
+    np.testing.assert_array_equal(x_fta, x_plain)  # the nominal innovation, the nominal gain
+    np.testing.assert_array_equal(p_fta, p_plain)
+    _, _, rep_own = core.kf_update(x, p, h, z_gross, r, core.robust_config("fta"), None)
+    assert rep_own["detected"] and rep_own["factor"] > 1.0  # untested, the same z is an outlier
+    st = core.RobustFilterState()
+    fz = core.robust_config("fuzzy")
+    _, _, rep = core.kf_update(x, p, h, z_quiet, r, fz, st, test=quiet)  # D_k at its clean level
+    assert not rep["alarm"]
+    x_fz, p_fz, rep = core.kf_update(x, p, h, z_quiet, r, fz, st, test=gross)
+    assert rep["rejected"] and rep["alarm"]
+    np.testing.assert_array_equal(x_fz, x)
+    np.testing.assert_array_equal(p_fz, p)
+    x_ig, _, rep = core.kf_update(x, p, h, z_quiet, r, core.robust_config("igg3"), None, test=gross)
+    assert rep["w"][0] == 1.0 and rep["w"][1] == 0.0  # the velocity row removed by its test residual
+    x_pos, _, _ = core.kf_update(x, p, h[:1], z_quiet[:1], r[:1])  # = a position-only update
+    np.testing.assert_allclose(x_ig, x_pos, rtol=1e-6, atol=1e-7)
+    with pytest.raises(errors.SingularError):
+        core.kf_update(x, p, h, z_quiet, r, core.robust_config("fta"), None, test=(quiet[0], -c))
+    with pytest.raises(errors.NonFiniteError):
+        core.kf_update(x, p, h, z_quiet, r, core.robust_config("fta"), None, test=(np.array([np.nan, 0.0]), c))

@@ -412,6 +412,23 @@ class CsAxis:
         if not self.initialised:
             raise NotInitError("CsAxis.init() has not been called")
 
+    def aided_prior(self, T: float, dp: float, dv: float, acc_var: float) -> tuple[np.ndarray, np.ndarray]:
+        """IMU-aided prediction of the GPS measurement [p + eps_p, v + eps_v] after a predict over T
+        from the current posterior (ALGORITHMS.md 2, IMU-aided test prior): the IMU's position and
+        velocity increments ``dp``, ``dv`` replace the acceleration state; ``acc_var`` is the
+        variance of the IMU acceleration error, held over the interval.
+
+        Returns (y (2,), S (2, 2)); S does not include R.
+        """
+        c = self.cfg
+        eb, eg = math.exp(-c.beta * T), math.exp(-c.gamma * T)
+        G = np.array([[1.0, T, 0.0, eb, 0.0], [0.0, 1.0, 0.0, 0.0, eg]])
+        y = G @ self.x + np.array([dp, dv])
+        S = G @ self.P @ G.T
+        S += np.diag([c.sigma_p_m**2 * (1.0 - eb * eb), c.sigma_v_mps**2 * (1.0 - eg * eg)])
+        S += acc_var * np.array([[T**4 / 4.0, T**3 / 2.0], [T**3 / 2.0, T**2]])
+        return y, S
+
     def predict(self, T: float) -> float:
         """Predict over T seconds. Returns the maneuver variance s2 used (also self.s2).
 

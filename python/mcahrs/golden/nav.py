@@ -19,7 +19,7 @@ tests/python/test_nav_golden_vs_c.py)
     ``round(x * 1e6)``, and every time comparison is made in integer us. The alignment window
     time is the integer sum of its samples' ``dt_us``. Formulas (``exp(-age/tau_a)``,
     ``r_acc``) use the configured seconds.
-2.  ``MCA_HIST_LEN`` is 50 (ALGORITHMS.md 8; ``Nav(hist_len=)`` takes another size). History
+2.  ``MCA_HIST_LEN`` is 48 (ALGORITHMS.md 8; ``Nav(hist_len=)`` takes another size). History
     interval accumulator: reset to 0 (not carried over) at each push. Lookup: smallest
     ``|t_entry - t|``, ties to the older; ``t <`` oldest entry time, or an empty ring, is a miss.
 3.  Lost-GPS roll/pitch timer: due when ``t_us - t_last >= grav_period_us``; ``t_last`` is the
@@ -63,7 +63,12 @@ tests/python/test_nav_golden_vs_c.py)
     skipped (tilt above ``max_tilt_obs``, a history miss for course over ground, speed below
     ``cog_min_speed``) does not align. Once per filter (``reset`` re-arms it).
 13. The robust update modes (ALGORITHMS.md 5) are not modelled here: every navigation update
-    is the plain section-1 update.
+    is the plain section-1 update. The IMU-aided test of the CS updates (GPS step 3) is: it
+    decides nothing in plain mode, but its T is the reported ``gps_T``.
+14. IMU increments (GPS step 3): ring entries as consecutive (previous end, end] intervals, the
+    oldest one only as the start of the next; the interval's end past the newest entry holds the
+    newest entry's acceleration for at most ``MCA_HIST_DT_US``; any saturated entry that overlaps
+    the interval, or one held, turns the aid off for all axes.
 """
 
 from __future__ import annotations
@@ -121,7 +126,7 @@ __all__ = [
     "status_code",
 ]
 
-MCA_HIST_LEN = 50  # history ring entries (ALGORITHMS.md 8)
+MCA_HIST_LEN = 48  # history ring entries (ALGORITHMS.md 8)
 YAW_UNOBSERVED_US = 10_000_000  # no yaw observation for this long: yaw unobserved
 MCA_HIST_DT_US = 20_000  # IMU time per entry, us
 
@@ -216,6 +221,8 @@ class NavConfig:
     mag_yaw_sigma_rad: float = 0.05
     cog_min_speed_mps: float = 3.0
     cog_sigma0_rad: float = 0.05
+    gps_test_imu: int = 1  # robust modes test the CS update against the IMU-aided prediction
+    imu_acc_sigma_mps2: float = 0.3  # IMU acceleration error std of that prediction
 
     @classmethod
     def ground_vehicle(cls) -> NavConfig:
@@ -705,6 +712,7 @@ class Nav:
             self.a_last = (0.0, 0.0, 0.0)
             self._remember_fix(fx, has_vel)
             return
+        aids = self._aided_priors(fx.t_us, T)
         saved = [(ax.x, ax.P, ax.s2, ax.initialised) for ax in self.cs.axes]
         try:
             self.cs.predict(T)
@@ -723,9 +731,23 @@ class Nav:
                 ax.x, ax.P, ax.s2, ax.initialised = x, P, s2, ini
             raise
         # From here on nothing raises.
+        r_p = (fx.h_acc**2, fx.h_acc**2, fx.v_acc**2)
+        d_mask = (MASK_POS if (has_alt and fx.fix_type >= 3) else 0) | (MASK_VEL if has_d else 0)
+        masks = (MASK_POS | vel_mask, MASK_POS | vel_mask, d_mask)
         for i, rep in enumerate(reports):
-            if rep is not None:
+            if rep is None:
+                continue
+            aid = aids[i]
+            if aid is None:
                 self.gps_T[i] = rep.T
+                continue
+            y, S = aid
+            rows = [k for k, bit in enumerate((MASK_POS, MASK_VEL)) if masks[i] & bit]
+            z = np.array([ned[i], fx.vel[i]])[rows]
+            r = np.array([r_p[i], fx.s_acc**2])[rows]
+            nu = z - y[rows]
+            C = S[np.ix_(rows, rows)] + np.diag(r)
+            self.gps_T[i] = float(nu @ np.linalg.solve(C, nu))
         a_cs = tuple(float(ax.x[2]) for ax in self.cs.axes)
 
         # Step 5: compensation acceleration.
@@ -766,6 +788,57 @@ class Nav:
         # Step 7.
         self.a_last = a_cs  # type: ignore[assignment]
         self._remember_fix(fx, has_vel)
+
+    def _imu_increments(self, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """Velocity and position increments (dv = int a, dp = int int a) over (t0, t1] from the
+        history ring, a = C_nb(q) f + [0, 0, g] per entry (ALGORITHMS.md 8, GPS step 3); None when
+        the ring does not cover the interval or a saturated entry is used."""
+        h = list(self.hist)
+        if len(h) < 2 or h[0].t_us > t0:
+            return None
+        dp, dv = np.zeros(3), np.zeros(3)
+
+        def add(e: HistEntry, o_us: int) -> None:
+            nonlocal dp, dv
+            a = att.dcm_from_quat(e.q) @ np.array(e.f_b) + np.array([0.0, 0.0, self.g])
+            o = o_us * 1e-6
+            dp = dp + dv * o + 0.5 * a * o * o
+            dv = dv + a * o
+
+        for prev, e in zip(h[:-1], h[1:], strict=True):
+            lo, hi = max(prev.t_us, t0), min(e.t_us, t1)
+            if hi <= lo:
+                continue
+            if e.saturated:
+                return None
+            add(e, hi - lo)
+        last = h[-1]
+        if t1 > last.t_us:
+            if t1 - last.t_us > MCA_HIST_DT_US or last.saturated:
+                return None
+            add(last, t1 - last.t_us)
+        return dp, dv
+
+    def _aided_priors(self, t_fix: int, T: float) -> list[tuple[np.ndarray, np.ndarray] | None]:
+        """Per CS axis the IMU-aided test prior (y, S) of this fix, or None (GPS step 3)."""
+        cfg = self.cfg
+        none: list[tuple[np.ndarray, np.ndarray] | None] = [None, None, None]
+        if not (cfg.gps_test_imu and self.aligned) or self.t_lastfix_us is None:
+            return none
+        inc = self._imu_increments(self.t_lastfix_us, t_fix)
+        if inc is None:
+            return none
+        dp, dv = inc
+        s2 = cfg.imu_acc_sigma_mps2**2
+        ah2 = (dv[0] ** 2 + dv[1] ** 2) / T**2
+        var_h = s2 + self.g**2 * (self.P[0, 0] + self.P[1, 1]) + ah2 * self.P[2, 2]
+        yaw_ok = not (self.flags() & FLAG_YAW_UNOBSERVED)
+        return [
+            self.cs.axes[i].aided_prior(T, float(dp[i]), float(dv[i]), var_h if i < 2 else s2)
+            if (i == 2 or yaw_ok)
+            else None
+            for i in range(3)
+        ]
 
     def _remember_fix(self, fx: _Fix, has_vel: tuple[bool, bool, bool]) -> None:
         self.t_lastfix_us = fx.t_us

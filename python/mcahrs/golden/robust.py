@@ -269,6 +269,7 @@ class RobustReport(UpdateReport):
     rejected: bool
     alarm: bool
     reset: bool = False  # the lock-up guard replaced a rejection by a plain update
+    tested: bool = False  # T and the mode's decisions came from a test innovation
 
 
 # --------------------------------------------------------------------------------------
@@ -560,6 +561,8 @@ class _Step:
     nu: np.ndarray
     C: np.ndarray
     T: float
+    nu_test: np.ndarray  # what the mode tests: nu itself, or the caller's test innovation
+    C_test: np.ndarray  # its covariance (incl. R)
 
     @property
     def m(self) -> int:
@@ -613,7 +616,7 @@ def _update_akf(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
     m = step.m
     # 1. Row statistics of the innovation (rows 0..m-1 of this update; the others keep theirs).
     r, s = akf_row_statistics(
-        memory.nu_mean[:m], memory.nu_var[:m], step.nu, cfg.akf_forget, first=not memory.started
+        memory.nu_mean[:m], memory.nu_var[:m], step.nu_test, cfg.akf_forget, first=not memory.started
     )
     memory.nu_mean[:m], memory.nu_var[:m], memory.started = r, s, True
     # 2. Detection and R* (eq. 14-15).
@@ -650,8 +653,8 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
 
 def _update_igg3(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
     """Mode 4, paper 003: reweight rows, then section 1 on the kept rows with the equivalent R."""
-    hph = step.H @ step.P @ step.H.T
-    w, R_eq, _ = igg_reweight(step.nu, hph, step.R, cfg.igg_k0, cfg.igg_k1)
+    # rows weighted by the tested residuals; C_test - R plays H P H^T's part in the iteration
+    w, R_eq, _ = igg_reweight(step.nu_test, step.C_test - step.R, step.R, cfg.igg_k0, cfg.igg_k1)
     detected = bool(np.any(w < 1.0))
     kept = np.flatnonzero(w > 0.0)
     if kept.size == 0:
@@ -707,8 +710,14 @@ def robust_update(
     R: np.ndarray,
     cfg: RobustConfig,
     state: RobustState,
+    test: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, RobustReport]:
     """Measurement update in the mode ``cfg.mode`` (ALGORITHMS.md 5).
+
+    ``test = (nu_t, C_t)``: the mode tests this innovation and covariance (incl. R) instead of
+    the update's own (ALGORITHMS.md 5, test innovation): T, IGG-III residuals and AKF row
+    statistics come from it; gain, correction, Joseph and the AKF Q window keep the nominal
+    ones. The report's T is the tested one, its nu and C the nominal ones.
 
     Steps 1-3 of section 1 with the nominal R (nu, C, Cholesky, T), then the mode. ``state``
     is updated in place, and only when the whole update succeeds.
@@ -733,7 +742,18 @@ def robust_update(
     x, P, H, z, R = _checked_inputs(x, P, H, z, R)
     memory = _working_copy(state)
     nu, C, T = _innovation(x, P, H, z, R)
-    step = _Step(x=x, P=P, H=H, R=R, nu=nu, C=C, T=T)
+    nu_t, C_t = nu, C
+    if test is not None:
+        nu_t = _as_float_array("test nu", test[0], 1)
+        C_t = _as_float_array("test C", test[1], 2)
+        if nu_t.shape != nu.shape or C_t.shape != C.shape:
+            raise BadArgError(f"test innovation shapes {nu_t.shape}, {C_t.shape} do not match m = {nu.size}")
+        if not (np.all(np.isfinite(nu_t)) and np.all(np.isfinite(C_t))):
+            raise NonFiniteError("test innovation is not finite")
+        C_t = 0.5 * (C_t + C_t.T)
+        y = _forward_substitution(_cholesky(C_t), nu_t)
+        T = float(y @ y)
+    step = _Step(x=x, P=P, H=H, R=R, nu=nu, C=C, T=T, nu_test=nu_t, C_test=C_t)
     with np.errstate(over="ignore", invalid="ignore"):  # every result is checked for finiteness
         x_plus, P_plus, outcome = _MODE_UPDATES[cfg.mode](step, cfg, memory)
     # Lock-up guard (ALGORITHMS.md 5): the reject_reset_n-th rejection in a row becomes a plain
@@ -742,7 +762,7 @@ def robust_update(
     if reset:
         x_plus, P_plus, plain = kf_update(x, P, H, z, R)
         memory = RobustState()
-        nu, C, T = plain.nu, plain.C, plain.T
+        nu, C = plain.nu, plain.C  # T stays the tested one
         outcome = replace(
             outcome, factor=1.0, w=np.ones(step.m), q_scale=1.0, detected=False, rejected=False, alarm=False
         )
@@ -776,5 +796,6 @@ def robust_update(
             rejected=bool(outcome.rejected),
             alarm=bool(outcome.alarm),
             reset=reset,
+            tested=test is not None,
         ),
     )
