@@ -476,4 +476,5 @@ def test_decisions_follow_the_test_innovation_and_the_update_the_nominal_one() -
     with pytest.raises(errors.SingularError):
         core.kf_update(x, p, h, z_quiet, r, core.robust_config("fta"), None, test=(quiet[0], -c))
     with pytest.raises(errors.NonFiniteError):
-        core.kf_update(x, p, h, z_quiet, r, core.robust_config("fta"), None, test=(np.array([np.nan, 0.0]), c))
+        bad = (np.array([np.nan, 0.0]), c)
+        core.kf_update(x, p, h, z_quiet, r, core.robust_config("fta"), None, test=bad)
