@@ -1,13 +1,15 @@
 """GNSS outlier benchmark of the C navigation filter, once per robust update mode (DESIGN.md 5).
 
 Run: PYTHONPATH=python python benchmarks/bench_outliers.py [--seed N] [--duration S]
-     [--scenario NAME ...] [--cs-only]
+     [--scenario NAME ...] [--cs-only] [--own-test]
 
 Prints, never asserts. For each simulator scenario it injects GNSS faults the way the detection
 paper (001, section 3.2) tests them, and replays the clean and the faulty recording through the C
 filter (``core.replay``) in every mode: 0 plain, 1 FTA, 2 AKF, 3 fuzzy, 4 IGG-III, set on the
 three CS axes (``cs_h``, ``cs_v``) and on the attitude filter (``att``; ``--cs-only`` leaves the
-attitude filter plain).
+attitude filter plain). The CS updates' robust decisions test the GPS against the IMU-aided
+prediction (ALGORITHMS.md 8, GPS step 3, the default ``gps_test_imu = 1``); ``--own-test`` runs
+them on the CS filter's own constant-acceleration prediction instead, for comparison.
 
 Faults (horizontal, random azimuth; lat/lon moved with the exact geodetic conversion,
 ``pymap3d.ned2geodetic``; velocity added to ``vel_ned_mps``), nothing in the first 60 s:
@@ -171,9 +173,12 @@ def inject(rec: Recording, faults: Faults) -> Recording:
 # --------------------------------------------------------------------------------------
 
 
+OWN_TEST = False  # --own-test: gps_test_imu = 0
+
+
 def nav_cfg(preset: str, mode: int, extra: dict, cs_only: bool) -> object:
     robust = {"robust": {"mode": mode, **extra}}
-    over = {"cs_h": robust, "cs_v": robust}
+    over = {"cs_h": robust, "cs_v": robust, "gps_test_imu": 0 if OWN_TEST else 1}
     if not cs_only:
         over["att"] = robust
     return core.nav_config(preset, **over)
@@ -525,7 +530,10 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=900.0, help="seconds per scenario (>= 810)")
     ap.add_argument("--scenario", action="append", choices=sorted(SCENARIOS), help="repeatable; default all")
     ap.add_argument("--cs-only", action="store_true", help="robust mode on the CS filters only")
+    ap.add_argument("--own-test", action="store_true", help="test the CS prediction, not the IMU-aided one")
     args = ap.parse_args()
+    global OWN_TEST
+    OWN_TEST = args.own_test
     t_start = time.perf_counter()
     names = args.scenario or list(SCENARIOS)
     where = "CS N/E/D filters only" if args.cs_only else "CS N/E/D and attitude filters"
