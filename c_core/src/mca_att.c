@@ -165,8 +165,10 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
         }
         rm[k * m + k] = r;
     }
-    const mca_status_t st = mca_kf_update(dx, att->p, MCA_ATT_NX, h, nu, rm, m, robust ? &att->cfg.robust : NULL,
-                                           robust ? &att->rs : NULL, ws, MCA_ATT_WS_LEN, rep);
+    /* the _tested entry with no test directly: mca_kf_update is a wrapper frame on this path */
+    const mca_status_t st = mca_kf_update_tested(dx, att->p, MCA_ATT_NX, h, nu, rm, m,
+                                                 robust ? &att->cfg.robust : NULL, robust ? &att->rs : NULL,
+                                                 NULL, NULL, ws, MCA_ATT_WS_LEN, rep);
     if (st == MCA_OK) {
         if (level_only) {
             /* u = C_nb^T e_down: the third row of C_nb, straight from q */

@@ -362,11 +362,11 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
         r[0] = (mask & MCA_CS_POS) != 0u ? r_p : r_v;
     }
     if (ax->aid.valid == 0u) {
-        return mca_kf_update(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs, ws, MCA_CS_WS_LEN,
-                             rep);
+        return mca_kf_update_tested(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs, NULL, NULL, ws,
+                                    MCA_CS_WS_LEN, rep);
     }
     /* test z against the IMU-aided prediction: rows of the mask, covariance s + R */
-    mca_kf_test_t test;
+    float nu_t[MCA_CS_NZ], c_t[MCA_CS_NZ * MCA_CS_NZ];
     size_t rows[MCA_CS_NZ], k = 0u;
     if ((mask & MCA_CS_POS) != 0u) {
         rows[k++] = 0u;
@@ -375,13 +375,13 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
         rows[k++] = 1u;
     }
     for (size_t i = 0; i < m; ++i) {
-        test.nu[i] = z[i] - ax->aid.y[rows[i]];
+        nu_t[i] = z[i] - ax->aid.y[rows[i]];
         for (size_t j = 0; j < m; ++j) {
-            test.c[i * m + j] = ax->aid.s[rows[i] * MCA_CS_NZ + rows[j]] + r[i * m + j];
+            c_t[i * m + j] = ax->aid.s[rows[i] * MCA_CS_NZ + rows[j]] + r[i * m + j];
         }
     }
     const mca_status_t su = mca_kf_update_tested(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs,
-                                                 &test, ws, MCA_CS_WS_LEN, rep);
+                                                 nu_t, c_t, ws, MCA_CS_WS_LEN, rep);
     if (su == MCA_OK) {
         ax->aid.valid = 0u;
     }

@@ -1108,8 +1108,8 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
             ins->flags &= ~(uint32_t)MCA_INS_FLAG_HIST_MISS;
             const size_t m = gnss_rows(ins, fix, &s, vel, vmask, h_acc, v_acc, s_acc);
             memset(ins->dx, 0, sizeof(ins->dx));
-            st = mca_kf_update(ins->dx, ins->p, NX, ins->upd_h, ins->upd_z, ins->upd_r, m, &ins->cfg.robust,
-                               &ins->rs, ins->ws, MCA_INS_WS_LEN, &ins->rep);
+            st = mca_kf_update_tested(ins->dx, ins->p, NX, ins->upd_h, ins->upd_z, ins->upd_r, m,
+                                      &ins->cfg.robust, &ins->rs, NULL, NULL, ins->ws, MCA_INS_WS_LEN, &ins->rep);
             if (st != MCA_OK) {
                 ins->n_gps_rej++;
                 return st; /* x, P, memory unchanged by mca_kf_update */
@@ -1178,8 +1178,8 @@ mca_status_t mca_ins_mag(mca_ins_t *ins, uint64_t t_us, const float mag_b[3])
         ins->upd_z[0] = mca_wrap_pi(psi_m - e[2]);
         ins->upd_r[0] = sig2;
         memset(ins->dx, 0, sizeof(ins->dx));
-        const mca_status_t s = mca_kf_update(ins->dx, ins->p, NX, h, ins->upd_z, ins->upd_r, 1u, NULL, NULL, ins->ws,
-                                             MCA_INS_WS_LEN, NULL);
+        const mca_status_t s = mca_kf_update_tested(ins->dx, ins->p, NX, h, ins->upd_z, ins->upd_r, 1u, NULL, NULL,
+                                                    NULL, NULL, ins->ws, MCA_INS_WS_LEN, NULL);
         if (s != MCA_OK) {
             return s;
         }

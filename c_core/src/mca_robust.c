@@ -472,15 +472,16 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
                            mca_robust_state_t *rs, float *ws, size_t ws_len,
                            mca_update_report_t *rep)
 {
-    return mca_kf_update_tested(x, p, n, h, z, r, m, rc, rs, NULL, ws, ws_len, rep);
+    return mca_kf_update_tested(x, p, n, h, z, r, m, rc, rs, NULL, NULL, ws, ws_len, rep);
 }
 
 mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, const float *z,
                                   const float *r, size_t m, const mca_robust_config_t *rc,
-                                  mca_robust_state_t *rs, const mca_kf_test_t *test, float *ws,
-                                  size_t ws_len, mca_update_report_t *rep)
+                                  mca_robust_state_t *rs, const float *nu_t, const float *c_t,
+                                  float *ws, size_t ws_len, mca_update_report_t *rep)
 {
-    if (x == NULL || p == NULL || h == NULL || z == NULL || r == NULL || ws == NULL) {
+    const int tested = nu_t != NULL;
+    if (x == NULL || p == NULL || h == NULL || z == NULL || r == NULL || ws == NULL || (tested && c_t == NULL)) {
         return MCA_ERR_NULL;
     }
     if (m == 0u || m > MCA_MEAS_MAX || n == 0u || ws_len < (size_t)MCA_KF_WS_LEN(n, m)) {
@@ -504,7 +505,7 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     }
     if (!mca_all_finite(z, m) || !mca_all_finite(r, m * m) || !mca_all_finite(x, n) ||
         !mca_all_finite(p, n * n) || !mca_all_finite(h, m * n) ||
-        (test != NULL && (!mca_all_finite(test->nu, m) || !mca_all_finite(test->c, m * m)))) {
+        (tested && (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m)))) {
         return MCA_ERR_NONFINITE;
     }
     /* Scratch layout (MCA_KF_WS_LEN(n, m) floats): pn (n x n); kk (n x m): P H^T, then K in
@@ -560,24 +561,24 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     /* The innovation the mode tests: the update's own, or the caller's test innovation. */
     const float *nu_m = y;
     float *c_m = c;
-    if (test != NULL) {
-        memcpy(ct, test->c, m * m * sizeof(float));
+    if (tested) {
+        memcpy(ct, c_t, m * m * sizeof(float));
         mca_mat_symmetrize(ct, m);
         if (mca_cholesky(lt, ct, m) != MCA_OK) {
             return MCA_ERR_SINGULAR;
         }
-        memcpy(t, test->nu, m * sizeof(float));
+        memcpy(t, nu_t, m * sizeof(float));
         mca_cholesky_solve(lt, t, m);
         t_stat = 0.0f;
         for (size_t i = 0; i < m; ++i) {
-            t_stat += test->nu[i] * t[i];
+            t_stat += nu_t[i] * t[i];
         }
-        nu_m = test->nu;
+        nu_m = nu_t;
         c_m = ct;
     }
     if (rep != NULL) {
         rep->t_stat = t_stat;
-        rep->tested = test != NULL ? 1u : 0u;
+        rep->tested = tested ? 1u : 0u;
     }
     if (mode != MCA_ROBUST_PLAIN && !isfinite(t_stat)) {
         return MCA_ERR_NONFINITE; /* every robust test needs T (plain mode never reads it) */
@@ -614,7 +615,7 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
      * it is rejecting (a maneuver taken for an outlier) cannot run open loop for ever. */
     const int reset = pl.rejected && rs != NULL && rc != NULL && rc->reject_reset_n > 0u &&
                       (unsigned)rs->n_reject + 1u >= (unsigned)rc->reject_reset_n;
-    int c_has_d = mode == MCA_ROBUST_IGG3 && test == NULL; /* IGG-III re-weighted c_m */
+    int c_has_d = mode == MCA_ROBUST_IGG3 && !tested; /* IGG-III re-weighted c_m */
     if (reset) {
         memset(&pl, 0, sizeof(pl));
         pl.gamma = 1.0f;

@@ -619,13 +619,12 @@ def kf_update(
     ws_len = int(lib.mca_kf_ws_len(n, m))
     ws = np.empty(max(ws_len, 1), np.float32)
     rep = ffi.new("mca_update_report_t *")
-    tst = ffi.NULL
+    nu_p = c_p = ffi.NULL
     if test is not None:
         nu_t = _as_f32(np.asarray(test[0], dtype=np.float32).reshape(-1), (m,), "test nu")
         c_t = _as_f32(np.asarray(test[1], dtype=np.float32), (m, m), "test C")
-        tst = ffi.new("mca_kf_test_t *")
-        tst.nu[0:m] = [float(v) for v in nu_t]
-        tst.c[0 : m * m] = [float(v) for v in c_t.reshape(-1)]
+        nu_c, c_c = np.ascontiguousarray(nu_t), np.ascontiguousarray(c_t)
+        nu_p, c_p = _fptr(nu_c), _fptr(c_c)
     st = lib.mca_kf_update_tested(
         _fptr(xa),
         _fptr(pa),
@@ -636,7 +635,8 @@ def kf_update(
         m,
         cfg if cfg is not None else ffi.NULL,
         state.c if state is not None else ffi.NULL,
-        tst,
+        nu_p,
+        c_p,
         _fptr(ws),
         ws_len,
         rep,

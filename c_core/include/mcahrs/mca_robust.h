@@ -78,16 +78,7 @@ typedef struct {
                                                      innovation (mca_kf_update_tested), not from nu, c */
 } mca_update_report_t;
 
-/**
- * A test innovation: what a robust mode tests instead of the update's own innovation
- * (docs/ALGORITHMS.md 5, "Test innovation"). The navigation filter predicts the GPS
- * measurement with the IMU for it, so a maneuver, which the accelerometer sees, is not taken
- * for an outlier while the filter's own constant-acceleration prediction lags it.
- */
-typedef struct {
-    float nu[MCA_MEAS_MAX];                 /**< measured minus test-predicted, m values */
-    float c[MCA_MEAS_MAX * MCA_MEAS_MAX];   /**< its covariance incl. R, m x m, row stride m, SPD */
-} mca_kf_test_t;
+
 
 /**
  * Defaults: plain mode, and the papers' parameters for the others (ALGORITHMS.md 5).
@@ -181,13 +172,17 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
  * in mca_kf_update, which is this function with test NULL. rep->t_stat is the tested T and
  * rep->tested is 1; rep->nu and rep->c stay the nominal ones.
  * Cost: mca_kf_update plus one m x m Cholesky and solve (m^3/6 + m^2 multiply-adds, m sqrtf).
- * @param[in] test test innovation and covariance (NULL: test the update's own); must be finite
- *                 (MCA_ERR_NONFINITE) with c_t positive definite (MCA_ERR_SINGULAR); read only.
+ * The navigation filter predicts the GPS measurement with the IMU for the test, so a maneuver,
+ * which the accelerometer sees, is not taken for an outlier while the CS filter's own
+ * constant-acceleration prediction lags it.
+ * @param[in] nu_t test innovation, m values (NULL: test the update's own; then c_t is ignored)
+ * @param[in] c_t  its covariance including R, m x m, row stride m, positive definite
+ *                 (MCA_ERR_SINGULAR); both finite (MCA_ERR_NONFINITE); read only.
  * Every other parameter, error and guarantee as mca_kf_update.
  */
 mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, const float *z,
                                   const float *r, size_t m, const mca_robust_config_t *rc,
-                                  mca_robust_state_t *rs, const mca_kf_test_t *test, float *ws,
-                                  size_t ws_len, mca_update_report_t *rep);
+                                  mca_robust_state_t *rs, const float *nu_t, const float *c_t,
+                                  float *ws, size_t ws_len, mca_update_report_t *rep);
 
 #endif /* MCA_ROBUST_H */
