@@ -33,7 +33,7 @@ typedef enum {
 /** 1 when x is neither NaN nor infinite. Cost: a compare. */
 int mca_finite(float x);
 
-/** 1 when all n values are finite. Cost: n compares. */
+/** 1 when all n values are finite. Cost: 2n float operations and one compare (~4n instructions on the M4F). */
 int mca_all_finite(const float *v, size_t n);
 
 /** c (r x k) = a (r x n) * b (n x k). c must not alias a or b. */
