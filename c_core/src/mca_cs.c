@@ -213,13 +213,12 @@ static void a3_cols(float *p, float t, float f13, float f23, float e)
     }
 }
 
-/* Predict with a T already validated. Phi is block diagonal, [[A3, 0], [0, diag(eb, eg)]],
- * so Phi P Phi^T is done in place by rows then columns (~80 multiplies instead of 250). */
-static void axis_predict(mca_cs_axis_t *ax, float t)
+/* Predict with a T already validated, and Phi, Q of mca_cs_transition(&ax->cfg, t, s2) with
+ * s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]). Phi is block diagonal, [[A3, 0], [0,
+ * diag(eb, eg)]], so Phi P Phi^T is done in place by rows then columns (~80 multiplies
+ * instead of 250). */
+static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float phi[25], const float q[25])
 {
-    float phi[25], q[25];
-    const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
-    mca_cs_transition(&ax->cfg, t, s2, phi, q);
     /* mean: eq. 17, Phi1 = constant acceleration + Gauss-Markov decay of eps */
     const float a = ax->x[2];
     ax->x[0] += t * ax->x[1] + 0.5f * t * t * a;
@@ -246,6 +245,27 @@ static void axis_predict(mca_cs_axis_t *ax, float t)
     p[24] += qs * q[24];
     mca_mat_symmetrize(p, 5u);
     ax->s2_m2ps4 = s2;
+}
+
+static void axis_predict(mca_cs_axis_t *ax, float t)
+{
+    float phi[25], q[25];
+    const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
+    mca_cs_transition(&ax->cfg, t, s2, phi, q);
+    axis_predict_with(ax, t, s2, phi, q);
+}
+
+static int same(float a, float b)
+{
+    return !(a < b) && !(a > b);
+}
+
+/* 1 when mca_cs_transition gives the same Phi and Q for (a, s2a) and (b, s2b) at any T: the
+ * fields it reads and the maneuver variance are equal. */
+static int same_model(const mca_cs_config_t *a, float s2a, const mca_cs_config_t *b, float s2b)
+{
+    return same(s2a, s2b) && same(a->tau_a_s, b->tau_a_s) && same(a->tau_p_s, b->tau_p_s) &&
+           same(a->tau_v_s, b->tau_v_s) && same(a->sigma_p_m, b->sigma_p_m) && same(a->sigma_v_mps, b->sigma_v_mps);
 }
 
 mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t)
@@ -344,8 +364,20 @@ mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t)
             return MCA_ERR_BAD_DT;
         }
     }
+    /* N and E share the horizontal configuration and, in fixed mode (or with equal a_hat),
+     * the maneuver variance: an axis whose model equals the previous axis' reuses its Phi
+     * and Q (7 exp/expm1 calls and the Singer block saved, the same bits). */
+    float phi[25], q[25], s2_prev = 0.0f;
+    const mca_cs_config_t *cfg_prev = NULL;
     for (size_t i = 0; i < 3u; ++i) {
-        axis_predict(&cs->axis[i], t);
+        mca_cs_axis_t *ax = &cs->axis[i];
+        const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
+        if (cfg_prev == NULL || !same_model(cfg_prev, s2_prev, &ax->cfg, s2)) {
+            mca_cs_transition(&ax->cfg, t, s2, phi, q);
+            cfg_prev = &ax->cfg;
+            s2_prev = s2;
+        }
+        axis_predict_with(ax, t, s2, phi, q);
     }
     return MCA_OK;
 }
