@@ -67,18 +67,21 @@ void mca_mat_symmetrize(float *a, size_t n)
 
 mca_status_t mca_cholesky(float *l, const float *a, size_t n)
 {
-    for (size_t i = 0; i < n * n; ++i) {
-        l[i] = 0.0f;
-    }
+    /* Column by column; row j's upper part is zeroed with column j's lower part, so no
+     * separate zero pass (a memset call on the deepest stack path of every update). */
     for (size_t j = 0; j < n; ++j) {
         float d = a[j * n + j];
         for (size_t k = 0; k < j; ++k) {
             d -= l[j * n + k] * l[j * n + k];
         }
-        /* !(d > 0) also catches NaN. */
+        /* !(d > 0) also catches NaN; sqrtf(+inf) would not be a usable factor. */
         if (!(d > 0.0f) || !isfinite(d)) {
-            for (size_t i = 0; i < n * n; ++i) {
-                l[i] = 0.0f;
+            /* unspecified but finite: all zero, column by column (a strided loop, which the
+             * compiler does not turn into a memset call either) */
+            for (size_t k = 0; k < n; ++k) {
+                for (size_t i = 0; i < n; ++i) {
+                    l[i * n + k] = 0.0f;
+                }
             }
             return MCA_ERR_SINGULAR;
         }
@@ -90,6 +93,7 @@ mca_status_t mca_cholesky(float *l, const float *a, size_t n)
                 s -= l[i * n + k] * l[j * n + k];
             }
             l[i * n + j] = s / ljj;
+            l[j * n + i] = 0.0f;
         }
     }
     return MCA_OK;
