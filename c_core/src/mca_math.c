@@ -248,10 +248,32 @@ float mca_wrap_pi(float a)
     if (!isfinite(a)) {
         return 0.0f;
     }
-    /* bounded: one fmodf, no loop */
-    float w = fmodf(a + MCA_PI_F, 2.0f * MCA_PI_F);
+    /* w = fmodf(a + pi, 2 pi), then + 2 pi when negative, without libm's fmodf (364 B of
+     * flash). For -4 pi < a + pi < 4 pi, every angle difference the filters wrap, the one
+     * subtraction or addition of 2 pi is exact (Sterbenz), i.e. the bits of fmodf's exact
+     * remainder. Farther out the multiple of 2 pi is taken off in float arithmetic (rounded,
+     * so a few ulp of the input off fmodf), and the result is kept inside [-pi, pi). */
+    const float two_pi = 2.0f * MCA_PI_F;
+    float w = a + MCA_PI_F;
+    if (w >= 2.0f * two_pi || w <= -2.0f * two_pi) {
+        float k = w / two_pi;
+        if (fabsf(k) < 8388608.0f) { /* 2^23: below it a float may have a fraction */
+            k = (float)(int32_t)k;   /* toward zero, as fmodf */
+        }
+        w -= k * two_pi;
+        if (!(fabsf(w) < two_pi)) {
+            w = 0.0f; /* |a| beyond ~1e7 rad: nothing of the angle is left in a float */
+        }
+    } else if (w >= two_pi) {
+        w -= two_pi;
+    } else if (w <= -two_pi) {
+        w += two_pi;
+    }
     if (w < 0.0f) {
-        w += 2.0f * MCA_PI_F;
+        w += two_pi;
+    }
+    if (w >= two_pi) {
+        w = 0.0f; /* w + 2 pi rounded up from a tiny negative w */
     }
     return w - MCA_PI_F;
 }
