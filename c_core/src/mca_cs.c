@@ -1,5 +1,6 @@
 /* Current-statistical maneuver filter (DESIGN.md 3, docs/ALGORITHMS.md 2-3). See mca_cs.h. */
 #include "mcahrs/mca_cs.h"
+#include "mca_cold.h"
 
 #include <math.h>
 #include <string.h>
@@ -8,7 +9,7 @@
 
 #define MCA_PI_F 3.14159265358979f
 
-void mca_cs_config_default_h(mca_cs_config_t *cfg)
+MCA_COLD void mca_cs_config_default_h(mca_cs_config_t *cfg)
 {
     cfg->tau_a_s = 2.0f;
     cfg->tau_p_s = 60.0f;
@@ -26,7 +27,7 @@ void mca_cs_config_default_h(mca_cs_config_t *cfg)
     mca_robust_config_default(&cfg->robust);
 }
 
-void mca_cs_config_default_v(mca_cs_config_t *cfg)
+MCA_COLD void mca_cs_config_default_v(mca_cs_config_t *cfg)
 {
     mca_cs_config_default_h(cfg);
     cfg->sigma_p_m = 3.0f;
@@ -40,7 +41,7 @@ static int positive(float v)
     return isfinite(v) && v > 0.0f;
 }
 
-mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
+MCA_COLD mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
 {
     if (cfg == NULL) {
         return MCA_ERR_NULL;
@@ -56,7 +57,7 @@ mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
     return MCA_OK;
 }
 
-mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m, float v0_mps)
+MCA_COLD mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m, float v0_mps)
 {
     if (ax == NULL || cfg == NULL) {
         return MCA_ERR_NULL;
@@ -329,7 +330,7 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
     return mca_kf_update(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs, ws, MCA_CS_WS_LEN, rep);
 }
 
-mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
+MCA_COLD mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
                           const float pos_ned_m[3], const float vel_ned_mps[3])
 {
     if (cs == NULL || cfg_h == NULL || cfg_v == NULL) {
