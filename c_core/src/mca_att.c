@@ -1,12 +1,13 @@
 /* Attitude EKF (DESIGN.md 4, docs/ALGORITHMS.md 7). See mca_att.h. */
 #include "mcahrs/mca_att.h"
+#include "mca_cold.h"
 
 #include <math.h>
 #include <string.h>
 
 #define DEG 0.0174532925199433f
 
-void mca_att_config_default(mca_att_config_t *cfg)
+MCA_COLD void mca_att_config_default(mca_att_config_t *cfg)
 {
     cfg->gyro_noise_rps = 3e-3f;
     cfg->gyro_bias_rw_rps2 = 1e-4f;
@@ -29,7 +30,7 @@ static int pos(float v)
     return isfinite(v) && v > 0.0f;
 }
 
-mca_status_t mca_att_config_check(const mca_att_config_t *c)
+MCA_COLD mca_status_t mca_att_config_check(const mca_att_config_t *c)
 {
     if (c == NULL) {
         return MCA_ERR_NULL;
@@ -43,7 +44,7 @@ mca_status_t mca_att_config_check(const mca_att_config_t *c)
     return MCA_OK;
 }
 
-mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, const float q_nb[4], const float bias[3])
+MCA_COLD mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, const float q_nb[4], const float bias[3])
 {
     if (att == NULL || cfg == NULL || q_nb == NULL || bias == NULL) {
         return MCA_ERR_NULL;

@@ -1,5 +1,6 @@
 /* Current-statistical maneuver filter (DESIGN.md 3, docs/ALGORITHMS.md 2-3). See mca_cs.h. */
 #include "mcahrs/mca_cs.h"
+#include "mca_cold.h"
 
 #include <math.h>
 #include <string.h>
@@ -8,7 +9,7 @@
 
 #define MCA_PI_F 3.14159265358979f
 
-void mca_cs_config_default_h(mca_cs_config_t *cfg)
+MCA_COLD void mca_cs_config_default_h(mca_cs_config_t *cfg)
 {
     cfg->tau_a_s = 2.0f;
     cfg->tau_p_s = 60.0f;
@@ -26,7 +27,7 @@ void mca_cs_config_default_h(mca_cs_config_t *cfg)
     mca_robust_config_default(&cfg->robust);
 }
 
-void mca_cs_config_default_v(mca_cs_config_t *cfg)
+MCA_COLD void mca_cs_config_default_v(mca_cs_config_t *cfg)
 {
     mca_cs_config_default_h(cfg);
     cfg->sigma_p_m = 3.0f;
@@ -40,7 +41,7 @@ static int positive(float v)
     return isfinite(v) && v > 0.0f;
 }
 
-mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
+MCA_COLD mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
 {
     if (cfg == NULL) {
         return MCA_ERR_NULL;
@@ -56,7 +57,7 @@ mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
     return MCA_OK;
 }
 
-mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m, float v0_mps)
+MCA_COLD mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m, float v0_mps)
 {
     if (ax == NULL || cfg == NULL) {
         return MCA_ERR_NULL;
@@ -213,13 +214,55 @@ static void a3_cols(float *p, float t, float f13, float f23, float e)
     }
 }
 
-/* Predict with a T already validated. Phi is block diagonal, [[A3, 0], [0, diag(eb, eg)]],
- * so Phi P Phi^T is done in place by rows then columns (~80 multiplies instead of 250). */
-static void axis_predict(mca_cs_axis_t *ax, float t)
+static mca_status_t inc_check(const mca_cs_inc_t *inc)
 {
-    float phi[25], q[25];
-    const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
-    mca_cs_transition(&ax->cfg, t, s2, phi, q);
+    if (inc == NULL) {
+        return MCA_OK;
+    }
+    if (!isfinite(inc->dp_m) || !isfinite(inc->dv_mps) || !isfinite(inc->acc_var_m2ps4)) {
+        return MCA_ERR_NONFINITE;
+    }
+    return inc->acc_var_m2ps4 >= 0.0f ? MCA_OK : MCA_ERR_BAD_ARG;
+}
+
+/* The IMU-aided test prior from the posterior about to be predicted over t (ALGORITHMS.md 2),
+ * with e_b = Phi44, e_g = Phi55 and sigma_p^2 (1 - e_b^2) = Q44, sigma_v^2 (1 - e_g^2) = Q55 of
+ * the predict's own transition. Only p, v, eps_p, eps_v enter: the IMU increments replace the
+ * acceleration state. */
+static void axis_aid(mca_cs_axis_t *ax, float t, const float phi[25], const float q[25], const mca_cs_inc_t *inc)
+{
+    const float *x = ax->x, *p = ax->p;
+    const float eb = phi[18], eg = phi[24];
+    /* G = [[1, t, 0, eb, 0], [0, 1, 0, 0, eg]]; s = G P G^T over the four states it reads */
+    float pgp[5], pgv[5]; /* P G^T, columns */
+    for (size_t i = 0; i < 5u; ++i) {
+        pgp[i] = p[5u * i] + t * p[5u * i + 1u] + eb * p[5u * i + 3u];
+        pgv[i] = p[5u * i + 1u] + eg * p[5u * i + 4u];
+    }
+    const float spp = pgp[0] + t * pgp[1] + eb * pgp[3];
+    const float spv = pgv[0] + t * pgv[1] + eb * pgv[3];
+    const float svv = pgv[1] + eg * pgv[4];
+    const float t2 = t * t, qa = inc->acc_var_m2ps4;
+    ax->aid.y[0] = x[0] + t * x[1] + inc->dp_m + eb * x[3];
+    ax->aid.y[1] = x[1] + inc->dv_mps + eg * x[4];
+    ax->aid.s[0] = spp + q[18] + qa * 0.25f * t2 * t2;
+    ax->aid.s[1] = spv + qa * 0.5f * t2 * t;
+    ax->aid.s[2] = ax->aid.s[1];
+    ax->aid.s[3] = svv + q[24] + qa * t2;
+    ax->aid.valid = 1u;
+}
+
+/* Predict with a T already validated, and Phi, Q of mca_cs_transition(&ax->cfg, t, s2) with
+ * s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]). Phi is block diagonal, [[A3, 0], [0,
+ * diag(eb, eg)]], so Phi P Phi^T is done in place by rows then columns (~80 multiplies
+ * instead of 250). */
+static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float phi[25], const float q[25],
+                              const mca_cs_inc_t *inc)
+{
+    ax->aid.valid = 0u;
+    if (inc != NULL) {
+        axis_aid(ax, t, phi, q, inc); /* from the posterior, before it is predicted */
+    }
     /* mean: eq. 17, Phi1 = constant acceleration + Gauss-Markov decay of eps */
     const float a = ax->x[2];
     ax->x[0] += t * ax->x[1] + 0.5f * t * t * a;
@@ -248,46 +291,25 @@ static void axis_predict(mca_cs_axis_t *ax, float t)
     ax->s2_m2ps4 = s2;
 }
 
-static mca_status_t inc_check(const mca_cs_inc_t *inc)
+static void axis_predict(mca_cs_axis_t *ax, float t, const mca_cs_inc_t *inc)
 {
-    if (inc == NULL) {
-        return MCA_OK;
-    }
-    if (!isfinite(inc->dp_m) || !isfinite(inc->dv_mps) || !isfinite(inc->acc_var_m2ps4)) {
-        return MCA_ERR_NONFINITE;
-    }
-    return inc->acc_var_m2ps4 >= 0.0f ? MCA_OK : MCA_ERR_BAD_ARG;
+    float phi[25], q[25];
+    const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
+    mca_cs_transition(&ax->cfg, t, s2, phi, q);
+    axis_predict_with(ax, t, s2, phi, q, inc);
 }
 
-/* The IMU-aided test prior from the posterior about to be predicted over t (ALGORITHMS.md 2).
- * Only p, v, eps_p, eps_v enter: the IMU increments replace the acceleration state. */
-static void axis_aid(mca_cs_axis_t *ax, float t, const mca_cs_inc_t *inc)
+static int same(float a, float b)
 {
-    const float *x = ax->x, *p = ax->p;
-    const float eb = expf(-t / ax->cfg.tau_p_s), eg = expf(-t / ax->cfg.tau_v_s);
-    /* G = [[1, t, 0, eb, 0], [0, 1, 0, 0, eg]]; s = G P G^T over the four states it reads */
-    const float gp[5] = {1.0f, t, 0.0f, eb, 0.0f};
-    const float gv[5] = {0.0f, 1.0f, 0.0f, 0.0f, eg};
-    float pgp[5], pgv[5]; /* P G^T, columns */
-    for (size_t i = 0; i < 5u; ++i) {
-        pgp[i] = p[5u * i] + t * p[5u * i + 1u] + eb * p[5u * i + 3u];
-        pgv[i] = p[5u * i + 1u] + eg * p[5u * i + 4u];
-    }
-    float spp = 0.0f, spv = 0.0f, svv = 0.0f;
-    for (size_t i = 0; i < 5u; ++i) {
-        spp += gp[i] * pgp[i];
-        spv += gp[i] * pgv[i];
-        svv += gv[i] * pgv[i];
-    }
-    const float sp2 = ax->cfg.sigma_p_m * ax->cfg.sigma_p_m, sv2 = ax->cfg.sigma_v_mps * ax->cfg.sigma_v_mps;
-    const float t2 = t * t, qa = inc->acc_var_m2ps4;
-    ax->aid.y[0] = x[0] + t * x[1] + inc->dp_m + eb * x[3];
-    ax->aid.y[1] = x[1] + inc->dv_mps + eg * x[4];
-    ax->aid.s[0] = spp + sp2 * (1.0f - eb * eb) + qa * 0.25f * t2 * t2;
-    ax->aid.s[1] = spv + qa * 0.5f * t2 * t;
-    ax->aid.s[2] = ax->aid.s[1];
-    ax->aid.s[3] = svv + sv2 * (1.0f - eg * eg) + qa * t2;
-    ax->aid.valid = 1u;
+    return !(a < b) && !(a > b);
+}
+
+/* 1 when mca_cs_transition gives the same Phi and Q for (a, s2a) and (b, s2b) at any T: the
+ * fields it reads and the maneuver variance are equal. */
+static int same_model(const mca_cs_config_t *a, float s2a, const mca_cs_config_t *b, float s2b)
+{
+    return same(s2a, s2b) && same(a->tau_a_s, b->tau_a_s) && same(a->tau_p_s, b->tau_p_s) &&
+           same(a->tau_v_s, b->tau_v_s) && same(a->sigma_p_m, b->sigma_p_m) && same(a->sigma_v_mps, b->sigma_v_mps);
 }
 
 mca_status_t mca_cs_axis_predict_aided(mca_cs_axis_t *ax, float t, const mca_cs_inc_t *inc)
@@ -302,11 +324,7 @@ mca_status_t mca_cs_axis_predict_aided(mca_cs_axis_t *ax, float t, const mca_cs_
     if (st != MCA_OK) {
         return st;
     }
-    ax->aid.valid = 0u;
-    if (inc != NULL) {
-        axis_aid(ax, t, inc);
-    }
-    axis_predict(ax, t);
+    axis_predict(ax, t, inc);
     return MCA_OK;
 }
 
@@ -388,7 +406,7 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
     return su;
 }
 
-mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
+MCA_COLD mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
                           const float pos_ned_m[3], const float vel_ned_mps[3])
 {
     if (cs == NULL || cfg_h == NULL || cfg_v == NULL) {
@@ -427,8 +445,20 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t, const mca_cs_inc_t *c
             return st;
         }
     }
+    /* N and E share the horizontal configuration and, in fixed mode (or with equal a_hat),
+     * the maneuver variance: an axis whose model equals the previous axis' reuses its Phi
+     * and Q (7 exp/expm1 calls and the Singer block saved, the same bits). */
+    float phi[25], q[25], s2_prev = 0.0f;
+    const mca_cs_config_t *cfg_prev = NULL;
     for (size_t i = 0; i < 3u; ++i) {
-        (void)mca_cs_axis_predict_aided(&cs->axis[i], t, inc != NULL ? inc[i] : NULL); /* checked above */
+        mca_cs_axis_t *ax = &cs->axis[i];
+        const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
+        if (cfg_prev == NULL || !same_model(cfg_prev, s2_prev, &ax->cfg, s2)) {
+            mca_cs_transition(&ax->cfg, t, s2, phi, q);
+            cfg_prev = &ax->cfg;
+            s2_prev = s2;
+        }
+        axis_predict_with(ax, t, s2, phi, q, inc != NULL ? inc[i] : NULL);
     }
     return MCA_OK;
 }

@@ -1,5 +1,6 @@
 /* Geodetic to NED and normal gravity (docs/ALGORITHMS.md 6). See mca_geo.h. */
 #include "mcahrs/mca_geo.h"
+#include "mca_cold.h"
 
 #include <math.h>
 
@@ -41,7 +42,7 @@ static void lat_sincos(int32_t e7, float *s, float *c)
     *s = e7 < 0 ? -sv : sv;
 }
 
-mca_status_t mca_geo_set_home(mca_geo_home_t *home, int32_t lat_e7, int32_t lon_e7, int32_t alt_mm)
+MCA_COLD mca_status_t mca_geo_set_home(mca_geo_home_t *home, int32_t lat_e7, int32_t lon_e7, int32_t alt_mm)
 {
     if (home == NULL) {
         return MCA_ERR_NULL;

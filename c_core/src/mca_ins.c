@@ -1,5 +1,6 @@
 /* Loosely-coupled INS (DESIGN.md 6, docs/ALGORITHMS.md 10). See mca_ins.h. */
 #include "mcahrs/mca_ins.h"
+#include "mca_cold.h"
 
 #include <math.h>
 #include <string.h>
@@ -27,7 +28,7 @@ typedef char mca_ins_rows_fit[(MCA_MEAS_MAX >= 6) ? 1 : -1];
 
 /* ------------------------------------------------------------------------ configuration */
 
-void mca_ins_config_default(mca_ins_config_t *c)
+MCA_COLD void mca_ins_config_default(mca_ins_config_t *c)
 {
     memset(c, 0, sizeof(*c));
     c->gyro_noise_rps = 3e-4f;
@@ -67,13 +68,13 @@ void mca_ins_config_default(mca_ins_config_t *c)
     mca_robust_config_default(&c->robust);
 }
 
-void mca_ins_config_fixedwing(mca_ins_config_t *c)
+MCA_COLD void mca_ins_config_fixedwing(mca_ins_config_t *c)
 {
     mca_ins_config_default(c);
     c->cog_min_speed_mps = 5.0f;
 }
 
-void mca_ins_config_multirotor(mca_ins_config_t *c)
+MCA_COLD void mca_ins_config_multirotor(mca_ins_config_t *c)
 {
     mca_ins_config_default(c);
     c->yaw_source = MCA_YAW_MAG; /* a multirotor does not move along its nose */
@@ -95,7 +96,7 @@ static int tau_ok(float v)
     return isfinite(v) && (v >= 1.0f || (v >= 0.0f && v <= 0.0f));
 }
 
-mca_status_t mca_ins_config_check(const mca_ins_config_t *c)
+MCA_COLD mca_status_t mca_ins_config_check(const mca_ins_config_t *c)
 {
     if (c == NULL) {
         return MCA_ERR_NULL;
@@ -121,7 +122,7 @@ mca_status_t mca_ins_config_check(const mca_ins_config_t *c)
     return ok ? MCA_OK : MCA_ERR_BAD_CONFIG;
 }
 
-mca_status_t mca_ins_init(mca_ins_t *ins, const mca_ins_config_t *cfg)
+MCA_COLD mca_status_t mca_ins_init(mca_ins_t *ins, const mca_ins_config_t *cfg)
 {
     if (ins == NULL || cfg == NULL) {
         return MCA_ERR_NULL;

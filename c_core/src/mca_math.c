@@ -12,12 +12,20 @@ int mca_finite(float x)
 
 int mca_all_finite(const float *v, size_t n)
 {
-    for (size_t i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
+    /* v - v is +0 for a finite v and NaN for an infinite or NaN one, so the sums stay +0
+     * exactly when every element is finite: two float operations per element and no
+     * compare-and-branch (8 instructions per element on the M4F before, ~4 now; it runs on
+     * every measurement update's inputs). Two sums halve the loop overhead. */
+    float s0 = 0.0f, s1 = 0.0f;
+    size_t i = 0;
+    for (; i + 1u < n; i += 2u) {
+        s0 += v[i] - v[i];
+        s1 += v[i + 1u] - v[i + 1u];
     }
-    return 1;
+    if (i < n) {
+        s0 += v[i] - v[i];
+    }
+    return isfinite(s0 + s1) ? 1 : 0;
 }
 
 void mca_mat_mul(float *c, const float *a, const float *b, size_t r, size_t n, size_t k)
@@ -59,18 +67,21 @@ void mca_mat_symmetrize(float *a, size_t n)
 
 mca_status_t mca_cholesky(float *l, const float *a, size_t n)
 {
-    for (size_t i = 0; i < n * n; ++i) {
-        l[i] = 0.0f;
-    }
+    /* Column by column; row j's upper part is zeroed with column j's lower part, so no
+     * separate zero pass (a memset call on the deepest stack path of every update). */
     for (size_t j = 0; j < n; ++j) {
         float d = a[j * n + j];
         for (size_t k = 0; k < j; ++k) {
             d -= l[j * n + k] * l[j * n + k];
         }
-        /* !(d > 0) also catches NaN. */
+        /* !(d > 0) also catches NaN; sqrtf(+inf) would not be a usable factor. */
         if (!(d > 0.0f) || !isfinite(d)) {
-            for (size_t i = 0; i < n * n; ++i) {
-                l[i] = 0.0f;
+            /* unspecified but finite: all zero, column by column (a strided loop, which the
+             * compiler does not turn into a memset call either) */
+            for (size_t k = 0; k < n; ++k) {
+                for (size_t i = 0; i < n; ++i) {
+                    l[i * n + k] = 0.0f;
+                }
             }
             return MCA_ERR_SINGULAR;
         }
@@ -82,6 +93,7 @@ mca_status_t mca_cholesky(float *l, const float *a, size_t n)
                 s -= l[i * n + k] * l[j * n + k];
             }
             l[i * n + j] = s / ljj;
+            l[j * n + i] = 0.0f;
         }
     }
     return MCA_OK;
@@ -236,10 +248,32 @@ float mca_wrap_pi(float a)
     if (!isfinite(a)) {
         return 0.0f;
     }
-    /* bounded: one fmodf, no loop */
-    float w = fmodf(a + MCA_PI_F, 2.0f * MCA_PI_F);
+    /* w = fmodf(a + pi, 2 pi), then + 2 pi when negative, without libm's fmodf (364 B of
+     * flash). For -4 pi < a + pi < 4 pi, every angle difference the filters wrap, the one
+     * subtraction or addition of 2 pi is exact (Sterbenz), i.e. the bits of fmodf's exact
+     * remainder. Farther out the multiple of 2 pi is taken off in float arithmetic (rounded,
+     * so a few ulp of the input off fmodf), and the result is kept inside [-pi, pi). */
+    const float two_pi = 2.0f * MCA_PI_F;
+    float w = a + MCA_PI_F;
+    if (w >= 2.0f * two_pi || w <= -2.0f * two_pi) {
+        float k = w / two_pi;
+        if (fabsf(k) < 8388608.0f) { /* 2^23: below it a float may have a fraction */
+            k = (float)(int32_t)k;   /* toward zero, as fmodf */
+        }
+        w -= k * two_pi;
+        if (!(fabsf(w) < two_pi)) {
+            w = 0.0f; /* |a| beyond ~1e7 rad: nothing of the angle is left in a float */
+        }
+    } else if (w >= two_pi) {
+        w -= two_pi;
+    } else if (w <= -two_pi) {
+        w += two_pi;
+    }
     if (w < 0.0f) {
-        w += 2.0f * MCA_PI_F;
+        w += two_pi;
+    }
+    if (w >= two_pi) {
+        w = 0.0f; /* w + 2 pi rounded up from a tiny negative w */
     }
     return w - MCA_PI_F;
 }

@@ -1,5 +1,6 @@
 /* Navigation top level (DESIGN.md 4, docs/ALGORITHMS.md 8). See mca_nav.h. */
 #include "mcahrs/mca_nav.h"
+#include "mca_cold.h"
 
 #include <math.h>
 #include <string.h>
@@ -11,7 +12,7 @@
 /* compile-time check: the shared scratch fits both updates */
 typedef char mca_nav_ws_fits_cs[(MCA_NAV_WS_LEN >= MCA_CS_WS_LEN) ? 1 : -1];
 
-void mca_nav_config_default(mca_nav_config_t *c)
+MCA_COLD void mca_nav_config_default(mca_nav_config_t *c)
 {
     memset(c, 0, sizeof(*c));
     mca_cs_config_default_h(&c->cs_h);
@@ -46,7 +47,7 @@ void mca_nav_config_default(mca_nav_config_t *c)
     c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
 }
 
-void mca_nav_config_fixedwing(mca_nav_config_t *c)
+MCA_COLD void mca_nav_config_fixedwing(mca_nav_config_t *c)
 {
     mca_nav_config_default(c);
     c->yaw_source = MCA_YAW_COG;
@@ -55,7 +56,7 @@ void mca_nav_config_fixedwing(mca_nav_config_t *c)
     c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
 }
 
-void mca_nav_config_multirotor(mca_nav_config_t *c)
+MCA_COLD void mca_nav_config_multirotor(mca_nav_config_t *c)
 {
     mca_nav_config_default(c);
     c->yaw_source = MCA_YAW_MAG;
@@ -90,7 +91,7 @@ static int nonneg(float v)
     return isfinite(v) && v >= 0.0f;
 }
 
-mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
+MCA_COLD mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
 {
     if (c == NULL) {
         return MCA_ERR_NULL;
@@ -114,7 +115,7 @@ mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
     return MCA_OK;
 }
 
-mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg)
+MCA_COLD mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg)
 {
     if (nav == NULL || cfg == NULL) {
         return MCA_ERR_NULL;

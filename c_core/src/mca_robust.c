@@ -353,6 +353,74 @@ static void plan_igg(mca_plan_t *pl, const mca_robust_config_t *rc, size_t m, co
     }
 }
 
+/* ---------------------------------------------------------------- products with H
+ *
+ * The measurement rows are sparse (a CS row has two ones in five columns, the roll/pitch
+ * rows three entries in six), so every product with H runs over the non-zero entries of H
+ * only. Skipping a zero entry is exact, not an approximation: its product with a finite
+ * value is +-0, every sum below starts at +0 and so is never -0 (in round-to-nearest
+ * x + (-x) = +0 and +0 + -0 = +0), and adding +-0 to such a sum changes no bit. So nu,
+ * P H^T and H P H^T are bit for bit the dense mca_mat_mul products, in the same order. */
+
+static int nonzero(float v)
+{
+    return v > 0.0f || v < 0.0f;
+}
+
+/* out (m) = H (m x n) v (n) */
+static void h_times_vec(float *out, const float *h, const float *v, size_t m, size_t n)
+{
+    for (size_t i = 0; i < m; ++i) {
+        float s = 0.0f;
+        for (size_t l = 0; l < n; ++l) {
+            const float hv = h[i * n + l];
+            if (nonzero(hv)) {
+                s += hv * v[l];
+            }
+        }
+        out[i] = s;
+    }
+}
+
+/* u (n x m) = P H^T, column j = sum over the non-zero h_jl of P's column l times h_jl
+ * (P symmetric: row l of P is read, as mca_mat_mul_bt(u, p, h) reads it). */
+static void p_ht(float *u, const float *p, const float *h, size_t n, size_t m)
+{
+    for (size_t j = 0; j < m; ++j) {
+        for (size_t i = 0; i < n; ++i) {
+            u[i * m + j] = 0.0f;
+        }
+        for (size_t l = 0; l < n; ++l) {
+            const float hv = h[j * n + l];
+            if (!nonzero(hv)) {
+                continue;
+            }
+            for (size_t i = 0; i < n; ++i) {
+                u[i * m + j] += p[i * n + l] * hv;
+            }
+        }
+    }
+}
+
+/* s (m x m) = H u, u = P H^T (n x m) */
+static void h_times_u(float *s, const float *h, const float *u, size_t n, size_t m)
+{
+    for (size_t i = 0; i < m * m; ++i) {
+        s[i] = 0.0f;
+    }
+    for (size_t i = 0; i < m; ++i) {
+        for (size_t l = 0; l < n; ++l) {
+            const float hv = h[i * n + l];
+            if (!nonzero(hv)) {
+                continue;
+            }
+            for (size_t j = 0; j < m; ++j) {
+                s[i * m + j] += hv * u[l * m + j];
+            }
+        }
+    }
+}
+
 /* 1 when the gain covariance differs from C (re-factor needed). Plain and undetected epochs
  * return 0, so they are the section-1 update bit for bit. */
 static int refactor_needed(const mca_plan_t *pl, size_t m)
@@ -442,11 +510,12 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
      * errors) that costs O(n^2 m) instead of three n x n x n products, and is symmetric by
      * construction: the upper triangle is computed and mirrored. */
     float *s = l; /* the Cholesky factor is no longer needed once K is solved */
-    mca_mat_mul(s, h, u, m, n, m); /* H P H^T */
+    h_times_u(s, h, u, n, m); /* H P H^T */
     for (size_t i = 0; i < m * m; ++i) {
         s[i] += c[i];
     }
     mca_mat_mul(b, kk, s, n, m, m); /* K S (n x m) */
+    float fin = 0.0f; /* acc - acc: +0 while every entry is finite, NaN after one that is not */
     for (size_t i = 0; i < n; ++i) {
         for (size_t j = i; j < n; ++j) {
             float acc = p[i * n + j];
@@ -455,9 +524,11 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
             }
             pn[i * n + j] = acc;
             pn[j * n + i] = acc;
+            fin += acc - acc;
         }
     }
-    if (!mca_all_finite(xn, n) || !mca_all_finite(pn, n * n)) {
+    /* the lower triangle is the mirror of the upper one: checking the upper one checks P+ */
+    if (!mca_all_finite(xn, n) || !isfinite(fin)) {
         return MCA_ERR_NONFINITE;
     }
     memcpy(x, xn, n * sizeof(float));
@@ -525,12 +596,12 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     float *lt = ct + m * m;
 
     /* nu = z - H x -> y; C = H P H^T + R (ALGORITHMS.md 1, step 1) */
-    mca_mat_mul(y, h, x, m, n, 1u);
+    h_times_vec(y, h, x, m, n);
     for (size_t i = 0; i < m; ++i) {
         y[i] = z[i] - y[i];
     }
-    mca_mat_mul_bt(kk, p, h, n, n, m); /* P H^T (P symmetric) */
-    mca_mat_mul(c, h, kk, m, n, m);    /* H P H^T */
+    p_ht(kk, p, h, n, m);      /* P H^T (P symmetric) */
+    h_times_u(c, h, kk, n, m); /* H P H^T */
     for (size_t i = 0; i < m * m; ++i) {
         c[i] += r[i];
     }
@@ -623,7 +694,7 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
         pl.factor = 1.0f;
         pl.q_scale = 1.0f;
         /* C and its factor again without any IGG increment (kk still holds P H^T) */
-        mca_mat_mul(c, h, kk, m, n, m);
+        h_times_u(c, h, kk, n, m);
         for (size_t i = 0; i < m * m; ++i) {
             c[i] += r[i];
         }

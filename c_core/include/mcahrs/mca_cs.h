@@ -134,7 +134,11 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p_m, float z_v_mps, f
 mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
                           const float pos_ned_m[3], const float vel_ned_mps[3]);
 
-/** Predict all three axes over t_s; a bad t_s changes none. */
+/**
+ * Predict all three axes over t_s; a bad t_s changes none. An axis whose model (the fields
+ * mca_cs_transition reads, and s2) equals the previous axis' reuses its Phi and Q: N and E
+ * in fixed mode. Cost: ~3.3k instructions on the Cortex-M4F (-O2), mean over the vectors.
+ */
 mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t_s);
 
 /**
@@ -147,6 +151,8 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t_s, const mca_cs_inc_t 
 /**
  * Update the three axes; per-axis masks, an axis with mask 0 is skipped, all-zero is
  * MCA_ERR_BAD_MASK. Every axis is validated before any changes. rep (3 entries) may be NULL.
+ * Cost: one mca_kf_update per axis with a mask, ~3.3k instructions each on the Cortex-M4F
+ * (-O2; 9.9k for three axes with position and velocity).
  * @param[out] ws MCA_CS_WS_LEN floats of scratch (shared with other filters by the caller)
  */
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos_ned_m[3], const float vel_ned_mps[3],

@@ -33,7 +33,7 @@ typedef enum {
 /** 1 when x is neither NaN nor infinite. Cost: a compare. */
 int mca_finite(float x);
 
-/** 1 when all n values are finite. Cost: n compares. */
+/** 1 when all n values are finite. Cost: 2n float operations and one compare (~4n instructions on the M4F). */
 int mca_all_finite(const float *v, size_t n);
 
 /** c (r x k) = a (r x n) * b (n x k). c must not alias a or b. */
@@ -91,7 +91,11 @@ void mca_sincosf(float x, float *s, float *c);
 float mca_sinf(float x);
 float mca_cosf(float x);
 
-/** Wrap an angle to [-pi, pi). */
+/**
+ * Wrap an angle to [-pi, pi): fmodf(a + pi, 2 pi) (+ 2 pi when negative) - pi, bit for bit
+ * for |a + pi| < 4 pi, within a few ulp of a beyond. Non-finite a gives 0.
+ * Cost: ~10 instructions, no libm.
+ */
 float mca_wrap_pi(float a_rad);
 
 #endif /* MCA_MATH_H */

@@ -211,6 +211,9 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro_b_rps[3
 
 /**
  * GPS step (ALGORITHMS.md 8): CS predict + update, then the gravity observation.
+ * Cost on the Cortex-M4F (-O2, scripts/fw_report.py): 24.4k instructions mean, 30.0k max
+ * (CS predict ~3.3k, CS update ~9.9k, the rest the roll/pitch and course updates, geodesy
+ * and history look-ups); stack 1024 B worst case.
  * @return MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE,
  *         MCA_ERR_TIME_BACKWARDS (all unchanged), CS update errors, else MCA_OK.
  */

@@ -123,12 +123,18 @@ size_t mca_kf_ws_len(size_t n, size_t m);
  * Kalman measurement update with Joseph-form covariance (docs/ALGORITHMS.md section 1) in
  * the robust/adaptive mode rc->mode (section 5): plain, FTA, AKF, fuzzy, IGG-III.
  *
- * Cost, every mode: O(n^3 + n^2 m + m^3) flops, the Joseph products dominating
- * (2 n^3 + 3 n^2 m + O(n m^2 + m^3) multiply-adds; n = 6, m = 2: ~700). On top of that,
+ * Cost, every mode: O(n^2 m + n m^2 + m^3) flops. The products with H (nu, P H^T, H P H^T)
+ * run over H's non-zero entries only (nz of them: nz (n + 2 m) + O(m n) multiply-adds; a
+ * zero entry costs a compare), the gain n Cholesky solves of size m, the expanded Joseph step
+ * ~3/2 n^2 m + n m^2 multiply-adds (upper triangle, mirrored), the finite checks of the
+ * inputs and of x+, P+ two float operations per value. On the Cortex-M4F (-O2) a CS axis
+ * update (n = 5, m <= 2) is ~3.3k instructions (mca_cs3_update mean / 3, scripts/fw_report.py).
+ * On top of that,
  * FTA and fuzzy inflation, AKF on detection and IGG-III with a down-weighted row re-factor
  * the m x m gain covariance (m^3 / 6 and m sqrtf); AKF adds O(m n + MCA_AKF_WINDOW) and one
  * log2 (the core's own, ~15 flops, no libm); IGG-III adds m^2 sqrtf; fuzzy O(1). Stack:
- * scalars and pointers only, no arrays (288 bytes in the Cortex-M4F firmware build).
+ * scalars and pointers only, no arrays (296 bytes in the Cortex-M4F firmware build, 368 with
+ * mca_cholesky under it).
  * Touches only its arguments: x, p, rs (AKF and fuzzy only) and rep are written, ws is
  * scratch, everything else is read only.
  *
