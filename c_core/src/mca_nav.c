@@ -253,9 +253,10 @@ static const mca_hist_entry_t *hist_newest(const mca_nav_t *nav)
 }
 
 /* One roll/pitch observation from a history entry; counts and flags. */
-/* rep: the caller's report buffer, reused (a report is 212 B of stack) */
+/* No report: its 212 B would sit on the deepest stack chain; T is read from the attitude
+ * filter's robust memory instead. */
 static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const float q_d[4], const float acc_n[3],
-                                float r_acc, mca_update_report_t *rep)
+                                float r_acc)
 {
     if (e == NULL) {
         nav->flags |= MCA_FLAG_HIST_MISS | MCA_FLAG_GRAV_SKIPPED;
@@ -269,11 +270,11 @@ static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const
         return MCA_OK;
     }
     const mca_status_t st = mca_att_update_gravity(&nav->att, e->f_b_mps2, acc_n, q_d != NULL ? q_d : e->q_nb,
-                                                   nav->g_mps2, r_acc, nav->ws, rep);
+                                                   nav->g_mps2, r_acc, nav->ws, NULL);
     if (st == MCA_OK) {
         nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
         nav->n_grav_obs++;
-        nav->last_rp_t = rep->t_stat;
+        nav->last_rp_t = nav->att.rs.t_stat;
         return MCA_OK;
     }
     /* a gate or a failed update: skipped, not an error of the caller (ALGORITHMS.md 8) */
@@ -423,8 +424,7 @@ static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
     }
     const float g = nav->g_mps2, sa = nav->cfg.cs_h.sigma_a0_mps2;
     const float r_acc = nav->cfg.nogps_rp_var_rad2 + sa * sa * nav->cfg.cs_h.tau_a_s / (g * g * nav->cfg.grav_period_s);
-    mca_update_report_t rep;
-    (void)gravity_obs(nav, hist_newest(nav), nav->att.q_nb, acc, r_acc, &rep);
+    (void)gravity_obs(nav, hist_newest(nav), nav->att.q_nb, acc, r_acc);
 }
 
 mca_status_t mca_imu_clock_step(uint64_t *t_last_us, uint64_t *t_first_us, uint8_t *have, uint64_t t_us,
@@ -567,18 +567,17 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                                                (has_vd ? MCA_CS_VEL : 0u))};
             const float rp[3] = {h_acc * h_acc, h_acc * h_acc, v_acc * v_acc};
             const float rv[3] = {s_acc * s_acc, s_acc * s_acc, s_acc * s_acc};
-            /* Axis by axis with one report (a report is 212 B of stack). Every input was checked
+            /* Axis by axis, no report (T is read from the axis memory). Every input was checked
              * above and the masks are well formed, so an axis can fail only numerically, and
              * then it is left unchanged (mca_cs_axis_update is atomic). */
-            mca_update_report_t rep;
             for (size_t i = 0; i < 3u; ++i) {
                 if (mask[i] == 0u) {
                     continue;
                 }
                 const mca_status_t su = mca_cs_axis_update(&nav->cs.axis[i], ned[i], vel[i], rp[i], rv[i], mask[i],
-                                                           nav->ws, &rep);
+                                                           nav->ws, NULL);
                 if (su == MCA_OK) {
-                    nav->last_gps_t[i] = rep.t_stat;
+                    nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat;
                 } else if (st == MCA_OK) {
                     st = su;
                 }
@@ -623,7 +622,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                 r_acc += (acc[0] * acc[0] + acc[1] * acc[1]) * nav->att.p[14] / g2;
             }
             if (observe) {
-                (void)gravity_obs(nav, e, NULL, acc, r_acc, &rep); /* failures are counted skips */
+                (void)gravity_obs(nav, e, NULL, acc, r_acc); /* failures are counted skips */
             }
             /* the course observation does not depend on the roll/pitch attempt (GPS step 6) */
             if (nav->aligned) {

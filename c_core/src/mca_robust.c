@@ -740,6 +740,9 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     if (rs != NULL && !reset) {
         rs->n_reject = pl.rejected ? (uint8_t)(rs->n_reject < 254u ? rs->n_reject + 1u : 254u) : 0u;
     }
+    if (rs != NULL) {
+        rs->t_stat = t_stat;
+    }
     if (rep != NULL) {
         rep->reset = reset ? 1u : 0u;
         rep->factor = pl.rejected ? 1.0f : pl.factor;

@@ -53,6 +53,9 @@ typedef struct {
     float nu_var[MCA_MEAS_MAX];    /**< AKF: running innovation variance per row */
     float q_scale;                 /**< factor the owner applies to its Q at the next predict */
     float d_k;                     /**< fuzzy: exponentially weighted membership D_k */
+    float t_stat;                  /**< T of the last successful update made with this memory (the
+                                        report's t_stat), for callers that pass no report; read by
+                                        no mode */
     uint8_t win_n;                 /**< AKF: entries in win, saturating at MCA_AKF_WINDOW */
     uint8_t win_head;              /**< AKF: next slot */
     uint8_t alarm;                 /**< fuzzy: alarm raised */
