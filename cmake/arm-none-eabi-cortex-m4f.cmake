@@ -29,7 +29,9 @@ set(CMAKE_ASM_FLAGS_INIT "${MCA_M4F_CPU_FLAGS}")
 set(CMAKE_EXE_LINKER_FLAGS_INIT
     "${MCA_M4F_CPU_FLAGS} --specs=nano.specs -Wl,--gc-sections -Wl,-Map=%.map -Wl,--print-memory-usage")
 
-# Optimisation of the firmware build types: -O2 is what the instruction counts are quoted at.
+# Optimisation of the firmware build types (MinSizeRel -Os, the firmware; Release -O2). CMake
+# appends its defaults to these (-O3 -DNDEBUG after -O2), so c_core/firmware/CMakeLists.txt sets
+# the build types' flags outright; these are for other projects that use this toolchain file.
 set(CMAKE_C_FLAGS_RELEASE_INIT "-O2")
 set(CMAKE_C_FLAGS_MINSIZEREL_INIT "-Os")
 set(CMAKE_C_FLAGS_RELWITHDEBINFO_INIT "-O2 -g")

@@ -3,7 +3,8 @@
 
     python scripts/fw_report.py [--cpi 1.25] [--mhz 168] [--imu-hz 400] [--gps-hz 10] [--ins-gps-hz 5]
 
-Builds ``c_core/firmware`` for the M4F (build/fw, -O2), replays every golden vector file
+Builds ``c_core/firmware`` for the M4F (build/fw, -Os; ``--build-type Release``: build/fw-Release,
+-O2), replays every golden vector file
 (``tests/vectors/*.mcav``) on ``qemu-system-arm -M mps2-an386 -icount shift=0`` and prints,
 beside the goals (it reports, it does not assert):
 
@@ -351,6 +352,9 @@ def ins_vs_nav(args, build: Path, meta: dict, samples: dict, painted: dict, fram
     )
 
 
+OPT_OF_BUILD = {"MinSizeRel": "-Os", "Release": "-O2"}  # c_core/firmware/CMakeLists.txt
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cpi", type=float, default=1.25, help="cycles per instruction assumed (default 1.25)")
@@ -360,14 +364,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--ins-gps-hz", type=float, default=5.0, help="GNSS rate of the INS vs nav comparison (default 5)"
     )
+    ap.add_argument(
+        "--build-type",
+        choices=sorted(OPT_OF_BUILD),
+        default="MinSizeRel",
+        help="MinSizeRel: -Os, the firmware (default); Release: -O2, the speed variant",
+    )
     args = ap.parse_args(argv)
 
-    build = gv.FW_BUILD
-    elf = gv.build_firmware(build)
+    build = gv.FW_BUILD if args.build_type == "MinSizeRel" else gv.REPO / "build" / f"fw-{args.build_type}"
+    elf = gv.build_firmware(build, args.build_type)
     gcc = subprocess.run(["arm-none-eabi-gcc", "-dumpversion"], capture_output=True, text=True).stdout.strip()
     print(
-        f"MCAHRS Cortex-M4F report: arm-none-eabi-gcc {gcc}, -O2 -mcpu=cortex-m4 -mfpu=fpv4-sp-d16 "
-        f"-mfloat-abi=hard, newlib-nano, {build.relative_to(gv.REPO)}"
+        f"MCAHRS Cortex-M4F report: arm-none-eabi-gcc {gcc}, {OPT_OF_BUILD[args.build_type]} "
+        f"-mcpu=cortex-m4 -mfpu=fpv4-sp-d16 -mfloat-abi=hard, newlib-nano, {build.relative_to(gv.REPO)}"
     )
 
     # ---- run the vectors (costs) and the comparisons
