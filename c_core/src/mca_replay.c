@@ -65,12 +65,12 @@ mca_status_t mca_cs3_run(mca_cs3_t *cs, size_t n, const float *dt_s, const float
     }
     for (size_t k = 0; k < n; ++k) {
         mca_status_t st = mca_cs3_predict(cs, dt_s[k]);
-        mca_update_report_t rep[3];
+        /* no reports (3 x 212 B of stack): T is left in each axis' robust memory */
         const uint8_t *mk = &mask[3u * k];
         int updated = 0;
         if ((mk[0] | mk[1] | mk[2]) != 0u) {
             const mca_status_t su = mca_cs3_update(cs, &pos[3u * k], &vel[3u * k], &r_pos[3u * k], &r_vel[3u * k],
-                                                   mk, ws, rep);
+                                                   mk, ws, NULL);
             st = st != MCA_OK ? st : su;
             updated = su == MCA_OK;
         }
@@ -85,7 +85,7 @@ mca_status_t mca_cs3_run(mca_cs3_t *cs, size_t n, const float *dt_s, const float
                 memcpy(&p_out[75u * k + 25u * i], cs->axis[i].p, 25u * sizeof(float));
             }
             if (t_out != NULL) {
-                t_out[3u * k + i] = (updated && mk[i] != 0u) ? rep[i].t_stat : NAN;
+                t_out[3u * k + i] = (updated && mk[i] != 0u) ? cs->axis[i].rs.t_stat : NAN;
             }
         }
     }
