@@ -218,30 +218,55 @@ static void hist_accumulate(mca_nav_t *nav, const float f[3], uint32_t dt_us, in
     }
 }
 
+static uint16_t hist_oldest(const mca_nav_t *nav)
+{
+    return (uint16_t)((nav->hist_head + MCA_HIST_LEN - nav->hist_count) % MCA_HIST_LEN);
+}
+
+static const mca_hist_entry_t *hist_at(const mca_nav_t *nav, uint16_t oldest, uint16_t k)
+{
+    return &nav->hist[(oldest + k) % MCA_HIST_LEN];
+}
+
+/* Position k (0 = oldest) of the first entry whose time is >= t32, hist_count if none. Entry
+ * times increase strictly (one push per >= MCA_HIST_DT_US), so a binary search on the
+ * wrap-safe signed differences of the low 32 bits (the ring spans < 2 s) does it. */
+static uint16_t hist_lower_bound(const mca_nav_t *nav, uint16_t oldest, uint32_t t32)
+{
+    uint16_t lo = 0u, hi = nav->hist_count;
+    while (lo < hi) {
+        const uint16_t mid = (uint16_t)((lo + hi) / 2u);
+        if ((int32_t)(hist_at(nav, oldest, mid)->t_us - t32) < 0) {
+            lo = (uint16_t)(mid + 1u);
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
 /* Entry nearest t (ties: the older); NULL when empty or t older than the oldest entry. */
 static const mca_hist_entry_t *hist_find(const mca_nav_t *nav, int64_t t)
 {
     if (nav->hist_count == 0u) {
         return NULL;
     }
-    const uint16_t oldest = (uint16_t)((nav->hist_head + MCA_HIST_LEN - nav->hist_count) % MCA_HIST_LEN);
-    /* wrap-safe signed differences of the low 32 bits (entries span < 2 s) */
+    const uint16_t oldest = hist_oldest(nav);
     const uint32_t t32 = (uint32_t)t;
     if ((int32_t)(t32 - nav->hist[oldest].t_us) < 0) {
         return NULL;
     }
-    const mca_hist_entry_t *best = NULL;
-    int64_t best_d = 0;
-    for (uint16_t k = 0; k < nav->hist_count; ++k) { /* oldest to newest */
-        const mca_hist_entry_t *e = &nav->hist[(oldest + k) % MCA_HIST_LEN];
-        int64_t d = (int64_t)(int32_t)(e->t_us - t32);
-        d = d < 0 ? -d : d;
-        if (best == NULL || d < best_d) {
-            best = e;
-            best_d = d;
-        }
+    /* the nearest is the first entry at or after t, or the one before it (older on ties) */
+    const uint16_t k = hist_lower_bound(nav, oldest, t32);
+    const mca_hist_entry_t *before = hist_at(nav, oldest, (uint16_t)(k - 1u)); /* k >= 1: t >= oldest */
+    if (k == nav->hist_count) {
+        return before;
     }
-    return best;
+    const mca_hist_entry_t *after = hist_at(nav, oldest, k);
+    if (k == 0u) {
+        return after;
+    }
+    return (after->t_us - t32) < (t32 - before->t_us) ? after : before;
 }
 
 static const mca_hist_entry_t *hist_newest(const mca_nav_t *nav)
@@ -337,15 +362,17 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
     }
     const uint32_t t1_32 = (uint32_t)t1;
     const int32_t r0 = -(int32_t)(uint32_t)(t1 - t0); /* times relative to t1, wrap-safe */
-    const uint16_t oldest = (uint16_t)((nav->hist_head + MCA_HIST_LEN - nav->hist_count) % MCA_HIST_LEN);
-    int32_t prev = (int32_t)(nav->hist[oldest].t_us - t1_32);
-    if (prev > r0) {
+    const uint16_t oldest = hist_oldest(nav);
+    if ((int32_t)(nav->hist[oldest].t_us - t1_32) > r0) {
         return 0;
     }
     memset(inc, 0, 3u * sizeof(*inc));
     float a[3];
-    for (uint16_t k = 1; k < nav->hist_count; ++k) {
-        const mca_hist_entry_t *e = &nav->hist[(oldest + k) % MCA_HIST_LEN];
+    /* from the entry before the first one ending after t0 (k0 >= 1: the oldest ends at or before t0) */
+    const uint16_t k0 = hist_lower_bound(nav, oldest, (uint32_t)t0 + 1u);
+    int32_t prev = (int32_t)(hist_at(nav, oldest, (uint16_t)(k0 - 1u))->t_us - t1_32);
+    for (uint16_t k = k0; k < nav->hist_count && prev < 0; ++k) {
+        const mca_hist_entry_t *e = hist_at(nav, oldest, k);
         const int32_t end = (int32_t)(e->t_us - t1_32);
         const int32_t lo = prev > r0 ? prev : r0;
         const int32_t hi = end < 0 ? end : 0;
