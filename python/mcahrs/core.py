@@ -169,6 +169,24 @@ class Cs3:
     def predict(self, t_s: float) -> None:
         check(lib.mca_cs3_predict(self._cs, t_s), f"mca_cs3_predict(t_s={t_s!r})")
 
+    def predict_aided(self, t_s: float, dp_m: Any, dv_mps: Any, acc_var_m2ps4: Any) -> dict[str, np.ndarray]:
+        """Predict with the IMU increments per axis (``mca_cs3_predict_aided``, docs/ALGORITHMS.md 2);
+        NaN in ``acc_var`` leaves that axis unaided. Returns the test priors ``y`` (3 x 2) and ``S``
+        (3 x 2 x 2), NaN on unaided axes; the next :meth:`update` tests against them."""
+        dp, dv, qa = (np.asarray(a, np.float64).reshape(3) for a in (dp_m, dv_mps, acc_var_m2ps4))
+        incs = [
+            ffi.new("mca_cs_inc_t *", {"dp_m": dp[i], "dv_mps": dv[i], "acc_var_m2ps4": qa[i]}) for i in range(3)
+        ]
+        ptrs = ffi.new("mca_cs_inc_t *[3]", [incs[i] if np.isfinite(qa[i]) else ffi.NULL for i in range(3)])
+        check(lib.mca_cs3_predict_aided(self._cs, t_s, ptrs), f"mca_cs3_predict_aided(t_s={t_s!r})")
+        y, s = np.full((3, 2), np.nan), np.full((3, 2, 2), np.nan)
+        for i in range(3):
+            aid = self._cs.axis[i].aid
+            if aid.valid:
+                y[i] = list(aid.y)
+                s[i] = np.array(list(aid.s)).reshape(2, 2)
+        return {"y": y, "S": s}
+
     def update(
         self, pos_ned_m: Any, vel_ned_mps: Any, r_pos_m2: Any, r_vel_m2ps2: Any, mask: Any
     ) -> dict[str, np.ndarray]:

@@ -612,6 +612,48 @@ static void test_long_run_p_stays_spd_every_mode(void)
     }
 }
 
+/* ---------------------------------------------------------------- test innovation */
+
+/* mca_kf_update_tested (ALGORITHMS.md 5): FTA decides on the test innovation, the update
+ * itself is the nominal one; a bad test changes nothing and says why. */
+static void test_tested_update_decides_on_the_test_innovation(void)
+{
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_FTA);
+    const float h[2] = {1.0f, 0.0f}, r[1] = {1.0f}, z[1] = {10.0f}; /* nominal T = 50: an outlier */
+    const float nu_quiet[1] = {1.0f}, c_t[1] = {2.0f};              /* tested T = 0.5 */
+    float x[2] = {0.0f, 0.0f}, p[4], xp[2] = {0.0f, 0.0f}, pp[4];
+    eye(p, 2, 1.0f);
+    eye(pp, 2, 1.0f);
+    mca_update_report_t rep;
+    CHECK_EQ_INT(mca_kf_update_tested(x, p, 2, h, z, r, 1, &rc, NULL, nu_quiet, c_t, g_ws, WS_MAX, &rep), MCA_OK);
+    CHECK_CLOSE(rep.t_stat, 0.5, 1e-6);
+    CHECK_EQ_INT(rep.tested, 1);
+    CHECK_EQ_INT(rep.detected, 0);
+    CHECK_CLOSE(rep.nu[0], 10.0, 0.0); /* the nominal innovation is reported and applied */
+    CHECK_EQ_INT(mca_kf_update(xp, pp, 2, h, z, r, 1, NULL, NULL, g_ws, WS_MAX, NULL), MCA_OK);
+    CHECK(memcmp(x, xp, sizeof(x)) == 0 && memcmp(p, pp, sizeof(p)) == 0);
+
+    const float nu_gross[1] = {10.0f}, c_bad[1] = {-1.0f}, nu_nan[1] = {NAN};
+    float x0[2] = {0.5f, -0.5f}, p0[4], xs[2], ps[4];
+    eye(p0, 2, 1.0f);
+    memcpy(xs, x0, sizeof(xs));
+    memcpy(ps, p0, sizeof(ps));
+    CHECK_EQ_INT(mca_kf_update_tested(xs, ps, 2, h, z, r, 1, &rc, NULL, nu_gross, NULL, g_ws, WS_MAX, &rep),
+                 MCA_ERR_NULL);
+    CHECK_EQ_INT(mca_kf_update_tested(xs, ps, 2, h, z, r, 1, &rc, NULL, nu_gross, c_bad, g_ws, WS_MAX, &rep),
+                 MCA_ERR_SINGULAR);
+    CHECK_EQ_INT(mca_kf_update_tested(xs, ps, 2, h, z, r, 1, &rc, NULL, nu_nan, c_t, g_ws, WS_MAX, &rep),
+                 MCA_ERR_NONFINITE);
+    CHECK(memcmp(xs, x0, sizeof(xs)) == 0 && memcmp(ps, p0, sizeof(ps)) == 0);
+    /* the gross test innovation is an outlier for FTA although the nominal one is quiet */
+    const float z_quiet[1] = {1.0f};
+    CHECK_EQ_INT(mca_kf_update_tested(xs, ps, 2, h, z_quiet, r, 1, &rc, NULL, nu_gross, c_t, g_ws, WS_MAX, &rep),
+                 MCA_OK);
+    CHECK_EQ_INT(rep.detected, 1);
+    CHECK(rep.factor > 1.0f);
+}
+
 int main(void)
 {
     test_chi2_table_matches_closed_form();
@@ -622,5 +664,6 @@ int main(void)
     test_bad_input_leaves_state_in_every_mode();
     test_more_rows_than_states();
     test_long_run_p_stays_spd_every_mode();
+    test_tested_update_decides_on_the_test_innovation();
     TEST_MAIN_END();
 }
