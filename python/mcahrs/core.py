@@ -175,7 +175,8 @@ class Cs3:
         (3 x 2 x 2), NaN on unaided axes; the next :meth:`update` tests against them."""
         dp, dv, qa = (np.asarray(a, np.float64).reshape(3) for a in (dp_m, dv_mps, acc_var_m2ps4))
         incs = [
-            ffi.new("mca_cs_inc_t *", {"dp_m": dp[i], "dv_mps": dv[i], "acc_var_m2ps4": qa[i]}) for i in range(3)
+            ffi.new("mca_cs_inc_t *", {"dp_m": p, "dv_mps": v, "acc_var_m2ps4": q})
+            for p, v, q in zip(dp, dv, qa, strict=True)
         ]
         ptrs = ffi.new("mca_cs_inc_t *[3]", [incs[i] if np.isfinite(qa[i]) else ffi.NULL for i in range(3)])
         check(lib.mca_cs3_predict_aided(self._cs, t_s, ptrs), f"mca_cs3_predict_aided(t_s={t_s!r})")
