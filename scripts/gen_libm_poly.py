@@ -11,9 +11,10 @@ polynomial only has to be accurate relative to the whole result:
 Q and A are fitted by the Remez exchange with the weight that turns their error into the
 relative error of expm1(r) and atan(u); the references are the Taylor series, summed in
 float64 far past their float64 precision. The coefficients are then rounded to float32
-(what the C uses) and the relative error of the rounded polynomial is printed: that is
-the approximation error alone (degree 3 for comparison; the C uses degree 4 of both), well below the float32 rounding the C adds on top (the
-measured end-to-end ulp figures are in tests/python/test_libm.py).
+(what the C uses) and the relative error of the rounded polynomial is printed: that is the
+approximation error alone (degree 3 for comparison; the C uses degree 4 of both), well below
+the float32 rounding the C adds on top (the measured end-to-end ulp figures are in
+tests/python/test_math.py).
 """
 
 from __future__ import annotations
@@ -63,7 +64,8 @@ def remez(f, w, lo: float, hi: float, deg: int, iters: int = 30) -> np.ndarray:
         err = wg * (np.polynomial.polynomial.polyval(grid, c) - fg)
         # one extremum per run of equal sign, then the n largest consecutive alternating ones
         starts = np.concatenate([[0], np.flatnonzero(np.diff(np.sign(err)) != 0) + 1, [len(grid)]])
-        idx = np.array([a0 + int(np.argmax(np.abs(err[a0:b0]))) for a0, b0 in zip(starts[:-1], starts[1:])])
+        runs = zip(starts[:-1], starts[1:], strict=True)
+        idx = np.array([a0 + int(np.argmax(np.abs(err[a0:b0]))) for a0, b0 in runs])
         while len(idx) > n:  # drop the smaller end
             idx = idx[1:] if abs(err[idx[0]]) < abs(err[idx[-1]]) else idx[:-1]
         if len(idx) < n:
