@@ -215,8 +215,8 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const floa
     if (fabsf(eul[1]) > att->cfg.max_tilt_obs_rad) {
         return MCA_ERR_BAD_ARG;
     }
-    const float phi_m = atan2f(gb[1], gb[2]);
-    const float theta_m = atan2f(-gb[0], sqrtf(gb[1] * gb[1] + gb[2] * gb[2]));
+    const float phi_m = mca_atan2f(gb[1], gb[2]);
+    const float theta_m = mca_atan2f(-gb[0], sqrtf(gb[1] * gb[1] + gb[2] * gb[2]));
     const float nu[2] = {mca_wrap_pi(phi_m - eul[0]), theta_m - eul[1]};
     float sp, cp, st, ct;
     mca_sincosf(eul[0], &sp, &cp);
@@ -294,6 +294,6 @@ mca_status_t mca_att_mag_heading(const mca_att_t *att, const float m[3], float d
     mca_quat_to_dcm(c, ql);
     const float mx = c[0] * m[0] + c[1] * m[1] + c[2] * m[2];
     const float my = c[3] * m[0] + c[4] * m[1] + c[5] * m[2];
-    *psi_m = mca_wrap_pi(atan2f(-my, mx) + decl);
+    *psi_m = mca_wrap_pi(mca_atan2f(-my, mx) + decl);
     return MCA_OK;
 }

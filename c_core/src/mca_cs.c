@@ -122,8 +122,8 @@ void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
     const float x = alpha * t;
     float q11, q12, q13, q22, q23, q33v;
     /* (1 - e)^2 and 1 - e^2 are cancellation-free through expm1f on both sides. */
-    const float em1 = expm1f(-x);         /* e - 1 */
-    const float em2 = expm1f(-2.0f * x);  /* e^2 - 1 */
+    const float em1 = mca_expm1f(-x);         /* e - 1 */
+    const float em2 = mca_expm1f(-2.0f * x);  /* e^2 - 1 */
     if (x < MCA_CS_SERIES_X) {
         /* q_ij = q T^p / 2 * g_ij(x)/x^p, series of scripts/gen_singer_series.py */
         const float t2 = t * t, t3 = t2 * t;
@@ -134,7 +134,7 @@ void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
         q22 = 0.5f * qc * t3 * series(mca_cs_series_g22, x, n);
     } else {
         /* DESIGN.md 3, exact Singer forms; no cancellation worth a bit for x >= 2 */
-        const float e = expf(-x), e2 = e * e;
+        const float e = mca_expf(-x), e2 = e * e;
         const float a2 = alpha * alpha, a3 = a2 * alpha, a4 = a3 * alpha, a5 = a4 * alpha;
         q11 = qc / (2.0f * a5) *
               (1.0f - e2 + 2.0f * x + 2.0f * x * x * x / 3.0f - 2.0f * x * x - 4.0f * x * e);
@@ -161,7 +161,7 @@ void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[
     const float beta = 1.0f / cfg->tau_p_s;
     const float gamma = 1.0f / cfg->tau_v_s;
     const float x = alpha * t;
-    const float em1 = expm1f(-x); /* e - 1 */
+    const float em1 = mca_expm1f(-x); /* e - 1 */
     memset(phi, 0, 25u * sizeof(float));
     memset(q, 0, 25u * sizeof(float));
     phi[0] = 1.0f;
@@ -172,8 +172,8 @@ void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[
     phi[6] = 1.0f;
     phi[7] = -em1 / alpha; /* (1 - e)/alpha */
     phi[12] = 1.0f + em1;  /* e */
-    phi[18] = expf(-beta * t);
-    phi[24] = expf(-gamma * t);
+    phi[18] = mca_expf(-beta * t);
+    phi[24] = mca_expf(-gamma * t);
     float q33[9];
     mca_cs_singer_q(alpha, t, s2, q33);
     for (size_t i = 0; i < 3u; ++i) {
@@ -182,8 +182,8 @@ void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[
         }
     }
     const float sp2 = cfg->sigma_p_m * cfg->sigma_p_m, sv2 = cfg->sigma_v_mps * cfg->sigma_v_mps;
-    q[18] = -sp2 * expm1f(-2.0f * beta * t);  /* sigma_p^2 (1 - exp(-2 beta T)) */
-    q[24] = -sv2 * expm1f(-2.0f * gamma * t); /* sigma_v^2 (1 - exp(-2 gamma T)) */
+    q[18] = -sp2 * mca_expm1f(-2.0f * beta * t);  /* sigma_p^2 (1 - exp(-2 beta T)) */
+    q[24] = -sv2 * mca_expm1f(-2.0f * gamma * t); /* sigma_v^2 (1 - exp(-2 gamma T)) */
 }
 
 static int dt_ok(const mca_cs_config_t *cfg, float t)

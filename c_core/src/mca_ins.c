@@ -705,8 +705,8 @@ static void level(mca_ins_t *ins, const float f_mean[3], const float bias[3], fl
 {
     ins->bg0_var = still ? ins->cfg.gyro_bias_still_var_rps2 : ins->cfg.gyro_bias0_var_rps2;
     ins->level_still = still ? 1u : 0u;
-    const float eul[3] = {atan2f(-f_mean[1], -f_mean[2]),
-                          atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])), yaw};
+    const float eul[3] = {mca_atan2f(-f_mean[1], -f_mean[2]),
+                          mca_atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])), yaw};
     mca_quat_from_euler(ins->q_nb, eul);
     memcpy(ins->bg_rps, bias, sizeof(ins->bg_rps));
     memset(ins->ba_mps2, 0, sizeof(ins->ba_mps2));
@@ -993,7 +993,7 @@ static void cog_align(mca_ins_t *ins, const float vel[3], int has_vne, float s_a
     if (!(speed > 0.0f) || speed < ins->cfg.cog_min_speed_mps) {
         return;
     }
-    const float dpsi = mca_wrap_pi(atan2f(vel[1], vel[0]) - yaw_of(q_fix));
+    const float dpsi = mca_wrap_pi(mca_atan2f(vel[1], vel[0]) - yaw_of(q_fix));
     const float var = ins->cfg.cog_sigma0_rad * ins->cfg.cog_sigma0_rad + (s_acc / speed) * (s_acc / speed);
     yaw_turn(ins, dpsi, var);
     float s, c;
@@ -1163,7 +1163,7 @@ mca_status_t mca_ins_mag(mca_ins_t *ins, uint64_t t_us, const float mag_b[3])
     mca_sincosf(e[1], &st, &ct);
     const float mlx = ct * mag_b[0] + st * sp * mag_b[1] + st * cp * mag_b[2];
     const float mly = cp * mag_b[1] - sp * mag_b[2];
-    const float psi_m = atan2f(-mly, mlx) + ins->cfg.mag_declination_rad;
+    const float psi_m = mca_atan2f(-mly, mlx) + ins->cfg.mag_declination_rad;
     const float sig2 = ins->cfg.mag_yaw_sigma_rad * ins->cfg.mag_yaw_sigma_rad;
     if (!ins->yaw_aligned) {
         yaw_turn(ins, mca_wrap_pi(psi_m - e[2]), sig2);

@@ -2,6 +2,7 @@
 #include "mcahrs/mca_math.h"
 
 #include <math.h>
+#include <string.h>
 
 #define MCA_PI_F 3.14159265358979f
 
@@ -122,13 +123,25 @@ void mca_cholesky_solve(const float *l, float *b, size_t n)
 void mca_sincosf(float x, float *s, float *c)
 {
     /* k = nearest integer to x / (pi/2); r = x - k pi/2 in three parts (exact products) */
-    const float kf = floorf(x * 0.636619772367581f + 0.5f);
+    /* floor(v) without libm's floorf: truncation toward zero, one down for a negative
+     * fraction; exact for every float (|v| >= 2^23 is already an integer). */
+    const float v = x * 0.636619772367581f + 0.5f;
+    float kf = v;
+    int32_t ki = 0;
+    if (fabsf(v) < 8388608.0f) {
+        ki = (int32_t)v;
+        kf = (float)ki;
+        if (kf > v) {
+            kf -= 1.0f;
+            --ki;
+        }
+    }
     const float r = ((x - kf * 1.5703125f) - kf * 4.837512969970703125e-4f) - kf * 7.54978995489188e-8f;
     const float z = r * r;
     const float sr = r + r * z * (-1.6666654611e-1f + z * (8.3321608736e-3f + z * -1.9515295891e-4f));
     const float cr = 1.0f - 0.5f * z + z * z * (4.166664568298827e-2f + z * (-1.388731625493765e-3f +
                                                                               z * 2.443315711809948e-5f));
-    const int32_t q = (int32_t)kf & 3;
+    const int32_t q = ki & 3; /* (ki 0 beyond 2^23, far outside the documented domain) */
     *s = q == 0 ? sr : q == 1 ? cr : q == 2 ? -sr : -cr;
     *c = q == 0 ? cr : q == 1 ? -sr : q == 2 ? -cr : sr;
 }
@@ -145,6 +158,162 @@ float mca_cosf(float x)
     float s, c;
     mca_sincosf(x, &s, &c);
     return c;
+}
+
+/* ---- exp, expm1, atan2: the core's own (see mca_math.h for the measured errors) ---- */
+
+/* 2^k, -126 <= k <= 127, exactly: the exponent field written directly. */
+static float pow2i(int32_t k)
+{
+    const uint32_t bits = (uint32_t)(k + 127) << 23;
+    float f;
+    memcpy(&f, &bits, sizeof(f));
+    return f;
+}
+
+/* p 2^k for -151 <= k <= 128 with one rounding (two in the subnormal range, so within an
+ * ulp of the subnormal result there); overflows to inf. */
+static float scale2(float p, int32_t k)
+{
+    const int32_t kk = k > 127 ? k - 1 : k < -126 ? k + 64 : k;
+    p *= pow2i(kk); /* exact, normal */
+    return k > 127 ? p * 2.0f : k < -126 ? p * 0x1p-64f : p;
+}
+
+/* e^x - 1 = 2^k (1 + r + corr) - 1 for |x| <= 104 (|k| <= 150), |r| <= ln(2)/2, corr the
+ * part of expm1(r) after the exact r (|corr| <= 0.07): the one reduction and polynomial of
+ * mca_expf and mca_expm1f. |x| <= ln(2)/2 is not reduced (k = 0, r = x exactly): the
+ * small-argument region where the CS filter needs expm1f(-x), x -> 0, has no reduction error.
+ * Otherwise ln 2 in two parts (Cephes): the high part has 9 significant bits, so k C1 and
+ * x - k C1 are exact (Sterbenz) and r = (x - k C1) + k C2 rounds once; that rounding, c, is
+ * recovered (Fast2Sum) and folded into corr (worth up to 0.7 ulp of expm1f otherwise).
+ * corr = r^2/2 + r^3 Q(r) + c (1 + r), Q the degree-4 minimax fit of
+ * scripts/gen_libm_poly.py (1.1e-9 relative to expm1(r)). */
+static float exp_parts(float x, int32_t *k, float *corr)
+{
+    int32_t ki = 0;
+    float r = x, c = 0.0f;
+    if (!(fabsf(x) <= 0.34657359f)) {
+        const float t = x * 1.44269504f; /* 1 / ln 2 */
+        ki = (int32_t)(t < 0.0f ? t - 0.5f : t + 0.5f);
+        const float kf = (float)ki;
+        const float a = x - kf * 0.693359375f;
+        const float b = kf * 2.12194440e-4f; /* -C2: C1 + C2 = ln 2 to 6e-14 */
+        r = a + b;
+        c = (a - r) + b;
+    }
+    const float q = 1.666666567e-01f +
+                    r * (4.166648164e-02f + r * (8.333419450e-03f + r * (1.393324463e-03f + r * 1.982412941e-04f)));
+    *k = ki;
+    *corr = (r * r) * (0.5f + r * q) + (c + c * r);
+    return r;
+}
+
+float mca_expf(float x)
+{
+    if (isnan(x)) {
+        return x + x;
+    }
+    if (x > 88.8f) {
+        return INFINITY; /* above ln(FLT_MAX) = 88.72 (88.72 .. 88.8 overflows in scale2) */
+    }
+    if (x < -104.0f) {
+        return 0.0f; /* below ln(2^-150) = -103.97: rounds to zero */
+    }
+    int32_t k;
+    float corr;
+    const float r = exp_parts(x, &k, &corr);
+    return scale2(1.0f + (r + corr), k);
+}
+
+float mca_expm1f(float x)
+{
+    if (isnan(x)) {
+        return x + x;
+    }
+    if (x > 88.8f) {
+        return INFINITY;
+    }
+    if (x < -18.0f) {
+        return -1.0f; /* e^x < 2^-25.9: -1 + e^x rounds to -1 */
+    }
+    if (fabsf(x) < 5.9604645e-08f) {
+        return x; /* 2^-24: x + x^2/2 rounds to x; -0 stays -0 */
+    }
+    int32_t k;
+    float corr;
+    const float r = exp_parts(x, &k, &corr);
+    if (k == 0) {
+        return r + corr; /* |x| <= ln(2)/2, r = x */
+    }
+    const float t = pow2i(k < 127 ? k : 127);
+    if (k < 0) {
+        /* 2^k em + (2^k - 1): 2^k em exact, 2^k - 1 exact or (k = -25) within a quarter ulp
+         * of the result: em's rounding and one more */
+        return t * (r + corr) + (t - 1.0f);
+    }
+    if (k == 1) {
+        /* 2r + 1 exact (Sterbenz) where the result is small (r < -1/4), then the correction:
+         * 2 em + 1 would double em's rounding */
+        return ((t - 1.0f) + t * r) + t * corr;
+    }
+    /* 2^k ((1 - 2^-k) + em), 1 - 2^-k exact up to k = 24; beyond, the -1 goes in as a
+     * 2^-k below em's last bit, not as a second rounding after the scaling */
+    const float m = k < 100 ? pow2i(-k) : 0.0f;
+    return k <= 24 ? t * ((1.0f - m) + (r + corr)) : scale2(1.0f + (r + (corr - m)), k);
+}
+
+float mca_atan2f(float y, float x)
+{
+    if (isnan(x) || isnan(y)) {
+        return x + y;
+    }
+    float ax = fabsf(x), ay = fabsf(y);
+    const int inf_x = !(ax <= 3.4028235e38f), inf_y = !(ay <= 3.4028235e38f);
+    if (inf_x || inf_y) {
+        /* both infinite: the diagonal, as C's atan2; one: the axis it points along */
+        ax = inf_x ? 1.0f : 0.0f;
+        ay = inf_y ? 1.0f : 0.0f;
+    }
+    const int swap = ay > ax;
+    float n = swap ? ax : ay; /* n <= d */
+    float d = swap ? ay : ax;
+    /* exact rescaling: a subnormal d would round 0.4375 d and 2n - d below; 2d + n must
+     * stay finite (n loses bits only where n / d rounds to 0 anyway) */
+    const float f = d < 0x1p-100f ? 0x1p64f : d > 0x1p124f ? 0.25f : 1.0f;
+    n *= f;
+    d *= f;
+    if (!(d > 0.0f)) {
+        d = 1.0f; /* both zero: u = 0, and the quadrant below gives C's +-0 / +-pi */
+    }
+    /* atan(n / d) = hi + atan(u) + lo in [0, pi/4], reduced as fdlibm's atanf, with u
+     * formed from n and d directly (2n - d and n - d are exact by Sterbenz), |u| <= 7/16 */
+    float num = n, den = d, hi = 0.0f, lo = 0.0f;
+    if (n >= 0.6875f * d) {
+        num = n - d;
+        den = n + d;
+        hi = 7.8539818525e-01f; /* pi/4 */
+        lo = -2.1855694143e-08f;
+    } else if (n >= 0.4375f * d) {
+        num = 2.0f * n - d;
+        den = 2.0f * d + n;
+        hi = 4.6364760399e-01f; /* atan(1/2) */
+        lo = 5.0121586881e-09f;
+    }
+    const float u = num / den;
+    /* atan(u) = u + u^3 A(u^2), A the degree-4 minimax fit of scripts/gen_libm_poly.py
+     * (3.3e-9 relative to atan(u)); lo goes in before u */
+    const float z = u * u;
+    const float p = -3.333330452e-01f +
+                    z * (1.999773830e-01f + z * (-1.422958225e-01f + z * (1.049080789e-01f + z * -5.819103122e-02f)));
+    const float t = hi + (u + (lo + u * z * p));
+    /* quadrant: t, pi - t, pi/2 - t or pi/2 + t, each c_hi + (+-t + c_lo): one rounding */
+    const int neg_x = signbit(x) != 0;
+    const float s = swap == neg_x ? t : -t;
+    const float c_hi = swap ? 1.5707963705e+00f : neg_x ? 3.1415927410e+00f : 0.0f;
+    const float c_lo = swap ? -4.3711388287e-08f : neg_x ? -8.7422776573e-08f : 0.0f;
+    const float r = c_hi + (s + c_lo);
+    return signbit(y) ? -r : r;
 }
 
 void mca_quat_mul(float r[4], const float p[4], const float q[4])
@@ -224,11 +393,11 @@ void mca_quat_to_dcm(float c[9], const float q[4])
 void mca_quat_to_euler(float e[3], const float q[4])
 {
     const float w = q[0], x = q[1], y = q[2], z = q[3];
-    e[0] = atan2f(2.0f * (w * x + y * z), 1.0f - 2.0f * (x * x + y * y));
+    e[0] = mca_atan2f(2.0f * (w * x + y * z), 1.0f - 2.0f * (x * x + y * y));
     float s = 2.0f * (w * y - z * x);
     s = s > 1.0f ? 1.0f : (s < -1.0f ? -1.0f : s);
-    e[1] = atan2f(s, sqrtf(1.0f - s * s)); /* asin without another libm routine */
-    e[2] = atan2f(2.0f * (w * z + x * y), 1.0f - 2.0f * (y * y + z * z));
+    e[1] = mca_atan2f(s, sqrtf(1.0f - s * s)); /* asin without another libm routine */
+    e[2] = mca_atan2f(2.0f * (w * z + x * y), 1.0f - 2.0f * (y * y + z * z));
 }
 
 void mca_quat_from_euler(float q[4], const float e[3])

@@ -142,8 +142,8 @@ static float norm3(const float v[3])
 
 static void align(mca_nav_t *nav, const float f_mean[3], const float bias[3], float att_var_rad2)
 {
-    const float eul[3] = {atan2f(-f_mean[1], -f_mean[2]),
-                          atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])), 0.0f};
+    const float eul[3] = {mca_atan2f(-f_mean[1], -f_mean[2]),
+                          mca_atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])), 0.0f};
     float q[4];
     mca_quat_from_euler(q, eul);
     mca_att_config_t acfg = nav->cfg.att;
@@ -435,7 +435,7 @@ static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
         const float age = span_s(nav->t_lastfix_us, t_us);
         for (size_t i = 0; i < 3u; ++i) {
             const float tau = i < 2u ? nav->cfg.cs_h.tau_a_s : nav->cfg.cs_v.tau_a_s;
-            acc[i] = age <= 4.0f * tau ? nav->acc_comp_n[i] * expf(-age / tau) : 0.0f;
+            acc[i] = age <= 4.0f * tau ? nav->acc_comp_n[i] * mca_expf(-age / tau) : 0.0f;
         }
     }
     if (mode != MCA_COMP_OFF && nav->cfg.nogps_centripetal && nav->have_fix && (nav->prev_vel_mask & 3u) == 3u) {
@@ -660,7 +660,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                     if (ec != NULL) {
                         const float r = nav->cfg.cog_sigma0_rad * nav->cfg.cog_sigma0_rad +
                                         (s_acc / speed) * (s_acc / speed);
-                        (void)yaw_obs(nav, atan2f(vel[1], vel[0]), r, ec->q_nb); /* gates are not errors */
+                        (void)yaw_obs(nav, mca_atan2f(vel[1], vel[0]), r, ec->q_nb); /* gates are not errors */
                     }
                 }
             }

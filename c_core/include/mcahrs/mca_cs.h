@@ -96,7 +96,8 @@ float mca_cs_maneuver_var(const mca_cs_config_t *cfg, float abar_mps2);
 
 /**
  * Exact CS transition Phi (5 x 5) and process noise Q (5 x 5) over t_s for maneuver
- * variance s2 (DESIGN.md 3). Cost: ~200 flops, two expf, two expm1f.
+ * variance s2 (DESIGN.md 3). Cost: ~200 flops, two mca_expf, two mca_expm1f (~40 instructions
+ * each on the M4F).
  */
 void mca_cs_transition(const mca_cs_config_t *cfg, float t_s, float s2_m2ps4, float phi[25], float q[25]);
 
@@ -112,7 +113,7 @@ mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t_s);
  * v + dv + e_g eps_v], s = G P G^T + diag(sigma_p^2 (1 - e_b^2), sigma_v^2 (1 - e_g^2)) +
  * acc_var [[t^4/4, t^3/2], [t^3/2, t^2]], G = [[1, t, 0, e_b, 0], [0, 1, 0, 0, e_g]],
  * e_b = exp(-beta t), e_g = exp(-gamma t). inc NULL: mca_cs_axis_predict.
- * Cost: the predict plus ~60 multiply-adds and two expf.
+ * Cost: the predict plus ~60 multiply-adds and two mca_expf.
  * @return MCA_ERR_BAD_DT, MCA_ERR_NONFINITE (inc not finite, or acc_var < 0: BAD_ARG), MCA_OK;
  *         the axis is unchanged on error.
  */

@@ -91,6 +91,41 @@ void mca_sincosf(float x, float *s, float *c);
 float mca_sinf(float x);
 float mca_cosf(float x);
 
+/*
+ * exp, expm1 and atan2: the core's own, in float32 +, -, *, / and bit operations (no libm,
+ * no double, no table), so host and target compute the same bits and the firmware links
+ * nothing from libm (newlib's exp, expm1, atan, atan2, floor and errno wrappers were 2.4 KiB).
+ * Errors measured against float64 NumPy on dense grids of float32 (every 16th to 128th bit
+ * pattern) and seeded random samples of the whole domain, in ulp of float32 at the float64
+ * value: tests/python/test_math.py, which asserts these figures. Polynomial coefficients:
+ * scripts/gen_libm_poly.py (Remez). Costs: static path lengths of the -O2 M4F code.
+ */
+
+/**
+ * e^x. Max error 0.80 ulp for normal results; a subnormal result (x < -87.3) is within
+ * 1 ulp (2^-149). NaN gives NaN, x > 88.72 +inf, x < -103.97 +0.
+ * Cost: ~40 instructions, one float-int conversion, no division (368 B of flash).
+ */
+float mca_expf(float x);
+
+/**
+ * e^x - 1, cancellation-free for small |x|. Max error 0.83 ulp for |x| <= ln(2)/2, where
+ * there is no argument reduction at all (the CS filter's expm1f(-alpha T), alpha T down to
+ * 1e-7 and below; below 2^-24 the result is x exactly), 0.91 ulp elsewhere. NaN gives NaN,
+ * x > 88.72 +inf, x < -18 exactly -1; -0 stays -0.
+ * Cost: ~35 instructions for |x| <= ln(2)/2, ~50 beyond, no division (576 B of flash).
+ */
+float mca_expm1f(float x);
+
+/**
+ * atan2(y, x) in [-pi, pi] with C's conventions for zeros and infinities (atan2(+-0, -0) =
+ * +-pi, atan2(+-inf, +-inf) = +-pi/4 or +-3pi/4); NaN in either gives NaN. Max error
+ * 1.49 ulp (measured 1.484, where y/x lies just above 1/4: its rounding is a whole ulp of
+ * the angle one binade lower). Reduction as fdlibm's atanf (bands 7/16, 11/16).
+ * Cost: one division and ~60 other instructions (512 B of flash).
+ */
+float mca_atan2f(float y, float x);
+
 /**
  * Wrap an angle to [-pi, pi): fmodf(a + pi, 2 pi) (+ 2 pi when negative) - pi, bit for bit
  * for |a + pi| < 4 pi, within a few ulp of a beyond. Non-finite a gives 0.
