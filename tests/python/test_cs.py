@@ -90,6 +90,38 @@ def run_golden(dt, zp, zv, rp, rv, mask, v0=(0.0, 0.0, 0.0), adaptive=False):
     return xs, ps, ts
 
 
+SEGMENT = 20  # steps of the random scenario between restarts from a common state (0.2-40 s)
+
+
+def _run_random_in_segments(dt, zp, zv, rp, rv, mask):
+    """The random scenario (adaptive variance) in segments: C and golden both start each segment
+    from the C state at its start (float32 values, exactly representable in float64)."""
+    c = core.Cs3(core.cs_config(False, adaptive=1), core.cs_config(True, adaptive=1))
+    n = len(dt)
+    out = {"x": np.zeros((n, 3, 5), np.float32), "P": np.zeros((n, 3, 5, 5), np.float32),
+           "T": np.zeros((n, 3), np.float32), "status": np.zeros(n, np.uint8)}
+    gx, gp, gt = np.zeros((n, 3, 5)), np.zeros((n, 3, 5, 5)), np.full((n, 3), np.nan)
+    for k0 in range(0, n, SEGMENT):
+        sl = slice(k0, min(n, k0 + SEGMENT))
+        g = gcs.Cs3(replace(gcs.CsAxisConfig.horizontal(), adaptive=True),
+                    replace(gcs.CsAxisConfig.vertical(), adaptive=True))
+        g.init()
+        for i, ax in enumerate(g.axes):
+            ax.x, ax.P = c.x[i].astype(np.float64), c.P[i].astype(np.float64)
+        seg = c.run(dt[sl], zp[sl], zv[sl], rp[sl], rv[sl], mask[sl])
+        for key in out:
+            out[key][sl] = seg[key]
+        for k in range(sl.start, sl.stop):
+            g.predict(float(dt[k]))
+            if mask[k].any():
+                for i, r in enumerate(g.update(zp[k], zv[k], rp[k], rv[k], mask[k])):
+                    if r is not None:
+                        gt[k, i] = r.T
+            for i, ax in enumerate(g.axes):
+                gx[k, i], gp[k, i] = ax.x, ax.P
+    return out, (gx, gp, gt)
+
+
 def normalised_gaps(c, g):
     """|C - golden| of each state over its golden std (max per state), and of P over sqrt(P_ii P_jj)."""
     sd = np.sqrt(np.einsum("kaii->kai", g["P"]))
@@ -130,13 +162,16 @@ def test_cs_c_matches_golden_step_by_step(name: str) -> None:
         zp, zv, rp, rv, mask = gps_inputs(p, v, 20, rng)
     # the default is fixed sigma_a; turns and random inputs run the adaptive (CS) variance
     adaptive = name in ("turns", "random")
-    c = core.Cs3(
-        core.cs_config(False, adaptive=int(adaptive)),
-        core.cs_config(True, adaptive=int(adaptive)),
-        vel_ned_mps=v0,
-    ).run(dt, zp, zv, rp, rv, mask)
+    if name == "random":
+        c, (gx, gp, gt) = _run_random_in_segments(dt, zp, zv, rp, rv, mask)
+    else:
+        c = core.Cs3(
+            core.cs_config(False, adaptive=int(adaptive)),
+            core.cs_config(True, adaptive=int(adaptive)),
+            vel_ned_mps=v0,
+        ).run(dt, zp, zv, rp, rv, mask)
+        gx, gp, gt = run_golden(dt, zp, zv, rp, rv, mask, v0, adaptive)
     assert np.all(c["status"] == 0)
-    gx, gp, gt = run_golden(dt, zp, zv, rp, rv, mask, v0, adaptive)
     dx, dp = normalised_gaps(c, {"x": gx, "P": gp})
     print(
         f"{name}: max |dx|/sigma per state = {' '.join(f'{v:.1e}' for v in dx)}, "
@@ -146,9 +181,13 @@ def test_cs_c_matches_golden_step_by_step(name: str) -> None:
         # Random measurements are inconsistent with the model on purpose: innovations reach
         # ~20 sigma, so the gain's float32 rounding (~1e-4 relative) moves the state by
         # ~1e-2 sigma per update, and the adaptive variance (slope ~5 per m/s^2 of abar) passes
-        # state gaps on to Q and P. A real mismatch still shows as O(1) sigma.
-        assert np.all(dx < 0.2)
-        assert dp < 2e-2
+        # state gaps on to Q and P. Run freely over 10,000 steps that feedback amplifies one ulp
+        # of any exp into 0.1-0.5 sigma (measured by perturbing the C core's exp by 1 ulp), so
+        # both sides restart every SEGMENT steps from the same float32 state: each segment
+        # tests the numerics of its steps (measured <= 8.3e-3 sigma, dP 8.9e-4; free-running it
+        # was 0.044-0.43 sigma). A real mismatch still shows as O(1) sigma.
+        assert np.all(dx < 5e-2)
+        assert dp < 5e-3
     else:
         assert np.all(dx < X_TOL)
         assert dp < 1e-3  # covariances do not see the position magnitude: float32 noise only
