@@ -421,6 +421,34 @@ static void h_times_u(float *s, const float *h, const float *u, size_t n, size_t
     }
 }
 
+/* K = U C_eff^-1 row by row in place (kk, n x m), from the Cholesky factor l of C_eff: the
+ * forward and back substitutions of mca_cholesky_solve with the m reciprocals of the diagonal
+ * taken once (m divisions instead of 2 n m). */
+static void solve_rows(const float *l, float *kk, size_t n, size_t m)
+{
+    float inv[MCA_MEAS_MAX];
+    for (size_t i = 0; i < m; ++i) {
+        inv[i] = 1.0f / l[i * m + i];
+    }
+    for (size_t row = 0; row < n; ++row) {
+        float *b = &kk[row * m];
+        for (size_t i = 0; i < m; ++i) {
+            float acc = b[i];
+            for (size_t k = 0; k < i; ++k) {
+                acc -= l[i * m + k] * b[k];
+            }
+            b[i] = acc * inv[i];
+        }
+        for (size_t i = m; i-- > 0;) {
+            float acc = b[i];
+            for (size_t k = i + 1u; k < m; ++k) {
+                acc -= l[k * m + i] * b[k];
+            }
+            b[i] = acc * inv[i];
+        }
+    }
+}
+
 /* 1 when the gain covariance differs from C (re-factor needed). Plain and undetected epochs
  * return 0, so they are the section-1 update bit for bit. */
 static int refactor_needed(const mca_plan_t *pl, size_t m)
@@ -475,12 +503,11 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
     float *u = a;
     memcpy(u, kk, n * m * sizeof(float));
     /* K = P H^T C_eff^-1, row by row in place: C_eff k_i = (P H^T)_i over the kept columns */
-    for (size_t i = 0; i < n; ++i) {
+    if (mk == m) {
+        solve_rows(l, kk, n, m);
+    }
+    for (size_t i = 0; i < n && mk != m; ++i) {
         float *row = &kk[i * m];
-        if (mk == m) {
-            mca_cholesky_solve(l, row, m);
-            continue;
-        }
         size_t jk = 0u;
         for (size_t j = 0; j < m; ++j) { /* gather forward */
             if ((pl->keep & (1u << j)) != 0u) {
@@ -505,22 +532,28 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
         xn[i] += x[i];
     }
     /* Joseph, expanded: (I - K H) P (I - K H)^T + K R_eff K^T
-     *   = P - K U^T - U K^T + K S K^T,  U = P H^T, S = H P H^T + R_eff,
-     * an identity for any gain K (so it keeps Joseph's first-order insensitivity to gain
-     * errors) that costs O(n^2 m) instead of three n x n x n products, and is symmetric by
-     * construction: the upper triangle is computed and mirrored. */
+     *   = P - K U^T - U K^T + K S K^T = P + A K^T + K A^T,  A = K S / 2 - U,
+     * U = P H^T, S = H P H^T + R_eff: an identity for any gain K (so it keeps Joseph's
+     * first-order insensitivity to gain errors) that costs O(n^2 m) instead of three
+     * n x n x n products, and is symmetric by construction: the upper triangle is computed
+     * and mirrored. */
     float *s = l; /* the Cholesky factor is no longer needed once K is solved */
     h_times_u(s, h, u, n, m); /* H P H^T */
     for (size_t i = 0; i < m * m; ++i) {
         s[i] += c[i];
     }
-    mca_mat_mul(b, kk, s, n, m, m); /* K S (n x m) */
+    mca_mat_mul(b, kk, s, n, m, m); /* K S (n x m), then A = K S / 2 - U in place */
+    for (size_t i = 0; i < n * m; ++i) {
+        b[i] = 0.5f * b[i] - u[i];
+    }
     float fin = 0.0f; /* acc - acc: +0 while every entry is finite, NaN after one that is not */
     for (size_t i = 0; i < n; ++i) {
+        const float *ai = &b[i * m], *ki = &kk[i * m];
         for (size_t j = i; j < n; ++j) {
+            const float *aj = &b[j * m], *kj = &kk[j * m];
             float acc = p[i * n + j];
             for (size_t k = 0; k < m; ++k) {
-                acc += b[i * m + k] * kk[j * m + k] - kk[i * m + k] * u[j * m + k] - u[i * m + k] * kk[j * m + k];
+                acc += ai[k] * kj[k] + ki[k] * aj[k];
             }
             pn[i * n + j] = acc;
             pn[j * n + i] = acc;
