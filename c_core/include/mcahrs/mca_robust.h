@@ -128,10 +128,11 @@ size_t mca_kf_ws_len(size_t n, size_t m);
  *
  * Cost, every mode: O(n^2 m + n m^2 + m^3) flops. The products with H (nu, P H^T, H P H^T)
  * run over H's non-zero entries only (nz of them: nz (n + 2 m) + O(m n) multiply-adds; a
- * zero entry costs a compare), the gain n Cholesky solves of size m, the expanded Joseph step
- * ~3/2 n^2 m + n m^2 multiply-adds (upper triangle, mirrored), the finite checks of the
- * inputs and of x+, P+ two float operations per value. On the Cortex-M4F (-O2) a CS axis
- * update (n = 5, m <= 2) is ~3.3k instructions (mca_cs3_update mean / 3, scripts/fw_report.py).
+ * zero entry costs a compare), the gain n Cholesky solves of size m (m divisions), the
+ * expanded Joseph step n^2 m + 2 n m^2 multiply-adds (upper triangle, mirrored), the finite
+ * checks of the inputs and of x+, P+ two float operations per value. On the Cortex-M4F (-Os) a
+ * CS axis update (n = 5, m <= 2) is ~3.8k instructions (mca_cs3_update mean / 3,
+ * scripts/fw_report.py): ~1k of argument checks and set-up, the rest gain and Joseph.
  * On top of that,
  * FTA and fuzzy inflation, AKF on detection and IGG-III with a down-weighted row re-factor
  * the m x m gain covariance (m^3 / 6 and m sqrtf); AKF adds O(m n + MCA_AKF_WINDOW) and one
