@@ -26,6 +26,7 @@ void mca_robust_config_default(mca_robust_config_t *cfg)
     cfg->igg_k0 = 1.5f;
     cfg->igg_k1 = 3.0f;
     cfg->reject_reset_n = 5u;
+    cfg->row_reset_n = 50u;
 }
 
 mca_status_t mca_robust_config_check(const mca_robust_config_t *c)
@@ -72,6 +73,11 @@ static int memory_ok(const mca_robust_state_t *rs)
     if (rs->win_n > MCA_AKF_WINDOW || rs->win_head >= MCA_AKF_WINDOW || rs->alarm > 1u || rs->started > 1u ||
         rs->n_reject == UINT8_MAX) {
         return 0;
+    }
+    for (size_t i = 0; i < MCA_MEAS_MAX; ++i) {
+        if (rs->n_removed[i] == UINT8_MAX) {
+            return 0;
+        }
     }
     if (!mca_all_finite(rs->win, MCA_AKF_WINDOW) || !mca_all_finite(rs->nu_mean, MCA_MEAS_MAX) ||
         !mca_all_finite(rs->nu_var, MCA_MEAS_MAX) || !mca_finite(rs->q_scale) || !mca_finite(rs->d_k)) {
@@ -717,8 +723,16 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     /* Lock-up guard (ALGORITHMS.md 5): the reject_reset_n-th rejection in a row is replaced by
      * a plain update and the memory is cleared, so a filter whose innovations only grow while
      * it is rejecting (a maneuver taken for an outlier) cannot run open loop for ever. */
-    const int reset = pl.rejected && rs != NULL && rc != NULL && rc->reject_reset_n > 0u &&
-                      (unsigned)rs->n_reject + 1u >= (unsigned)rc->reject_reset_n;
+    const unsigned removed = ~pl.keep & ((1u << m) - 1u); /* rows the mode removed (IGG-III) */
+    int reset = 0;
+    if (rs != NULL && rc != NULL) {
+        reset = pl.rejected && rc->reject_reset_n > 0u && (unsigned)rs->n_reject + 1u >= (unsigned)rc->reject_reset_n;
+        for (size_t i = 0; i < m && rc->row_reset_n > 0u; ++i) {
+            if (((removed >> i) & 1u) != 0u && (unsigned)rs->n_removed[i] + 1u >= (unsigned)rc->row_reset_n) {
+                reset = 1;
+            }
+        }
+    }
     int c_has_d = mode == MCA_ROBUST_IGG3 && !tested; /* IGG-III re-weighted c_m */
     if (reset) {
         memset(&pl, 0, sizeof(pl));
@@ -772,6 +786,10 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     }
     if (rs != NULL && !reset) {
         rs->n_reject = pl.rejected ? (uint8_t)(rs->n_reject < 254u ? rs->n_reject + 1u : 254u) : 0u;
+        for (size_t i = 0; i < m; ++i) {
+            const uint8_t k = rs->n_removed[i];
+            rs->n_removed[i] = ((removed >> i) & 1u) != 0u ? (uint8_t)(k < 254u ? k + 1u : 254u) : 0u;
+        }
     }
     if (rs != NULL) {
         rs->t_stat = t_stat;

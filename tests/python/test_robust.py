@@ -478,3 +478,31 @@ def test_decisions_follow_the_test_innovation_and_the_update_the_nominal_one() -
     with pytest.raises(errors.NonFiniteError):
         bad = (np.array([np.nan, 0.0]), c)
         core.kf_update(x, p, h, z_quiet, r, core.robust_config("fta"), None, test=bad)
+
+
+@pytest.mark.parametrize("row_reset_n", [0, 3])
+def test_row_lock_up_guard_replaces_the_nth_removal_of_a_row(row_reset_n: int) -> None:
+    """IGG-III removing the position row of a filter whose position sits far off (velocity row
+    fine) for ever unless the row guard of ALGORITHMS.md 5 steps in; C and golden agree."""
+    x = np.zeros(5, np.float32)
+    P = np.diag([1.0, 1.0, 1.0, 0.5, 0.01]).astype(np.float32)
+    H = np.array([[1, 0, 0, 1, 0], [0, 1, 0, 0, 1]], np.float32)
+    R = np.diag([1.0, 0.01]).astype(np.float32)
+    z = np.array([60.0, 0.0], np.float32)  # position 40 sigma off, velocity consistent
+    cfg_c = core.robust_config("igg3", row_reset_n=row_reset_n)
+    cfg_g = gr.RobustConfig(mode="igg3", row_reset_n=row_reset_n)
+    st_c, st_g = core.RobustFilterState(), gr.RobustState()
+    xc, Pc, xg, Pg = x, P, x.astype(np.float64), P.astype(np.float64)
+    resets, removed = [], []
+    for _ in range(6):
+        xc, Pc, rc_ = core.kf_update(xc, Pc, H, z, R, cfg_c, st_c)
+        xg, Pg, rg_ = gr.robust_update(xg, Pg, H, z, R, cfg_g, st_g)
+        assert rc_["reset"] == rg_.reset and not rc_["rejected"]
+        np.testing.assert_allclose(xc, xg, rtol=1e-4, atol=1e-4)
+        resets.append(rc_["reset"])
+        removed.append(rc_["w"][0] == 0.0)
+    if row_reset_n == 0:
+        assert not any(resets) and all(removed)  # the position row is never used again
+    else:
+        assert resets == [False, False, True, False, False, True]  # every 3rd removal
+        assert xc[0] + xc[3] > 1.0  # the plain updates pulled the position toward the fixes

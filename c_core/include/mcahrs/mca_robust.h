@@ -38,6 +38,7 @@ typedef struct {
     uint8_t fuzzy_reject;  /**< fuzzy alarm: 1 reject the update, 0 inflate it */
     uint8_t akf_window;    /**< AKF window length, 1..MCA_AKF_WINDOW */
     uint8_t reject_reset_n; /**< lock-up guard: the n-th rejection in a row updates plain instead (0: off) */
+    uint8_t row_reset_n;    /**< row lock-up guard: a row removed n times in a row, the same (0: off) */
     float akf_forget;      /**< AKF recursive R-estimate weight, (0, 1] */
     float akf_q_min;       /**< AKF Q factor clamp, > 0 */
     float akf_q_max;       /**< AKF Q factor clamp, >= akf_q_min */
@@ -61,6 +62,8 @@ typedef struct {
     uint8_t alarm;                 /**< fuzzy: alarm raised */
     uint8_t started;               /**< AKF: row statistics initialised */
     uint8_t n_reject;              /**< rejected updates in a row (lock-up guard) */
+    uint8_t n_removed[MCA_MEAS_MAX]; /**< per row index: updates in a row that removed it (IGG-III
+                                          weight 0; row lock-up guard) */
 } mca_robust_state_t;
 
 /** What one update did. Sizes fixed; only the first m entries are meaningful. */

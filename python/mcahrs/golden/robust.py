@@ -191,6 +191,7 @@ class RobustConfig:
     igg_k0: float = 1.5
     igg_k1: float = 3.0
     reject_reset_n: int = 5  # lock-up guard: the n-th rejection in a row updates plain (0: off)
+    row_reset_n: int = 50  # row lock-up guard: a row removed the n-th time in a row, the same (0: off)
 
     def validate(self) -> None:
         """Raise BadConfigError unless every field is in its documented range.
@@ -222,10 +223,10 @@ class RobustConfig:
             )
         if not 0.0 < self.igg_k0 < self.igg_k1:
             raise BadConfigError(f"need 0 < igg_k0 < igg_k1, got {self.igg_k0!r}, {self.igg_k1!r}")
-        if not (isinstance(self.reject_reset_n, int) and 0 <= self.reject_reset_n <= 255):
-            raise BadConfigError(
-                f"reject_reset_n must be an integer in [0, 255], got {self.reject_reset_n!r}"
-            )
+        for name in ("reject_reset_n", "row_reset_n"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and 0 <= v <= 255):
+                raise BadConfigError(f"{name} must be an integer in [0, 255], got {v!r}")
 
 
 @dataclass
@@ -247,6 +248,7 @@ class RobustState:
     alarm: bool = False
     started: bool = False
     n_reject: int = 0  # updates rejected in a row (lock-up guard)
+    n_removed: list[int] = field(default_factory=lambda: [0] * M_MAX)  # per row: removed in a row
 
 
 @dataclass(frozen=True)
@@ -756,9 +758,13 @@ def robust_update(
     step = _Step(x=x, P=P, H=H, R=R, nu=nu, C=C, T=T, nu_test=nu_t, C_test=C_t)
     with np.errstate(over="ignore", invalid="ignore"):  # every result is checked for finiteness
         x_plus, P_plus, outcome = _MODE_UPDATES[cfg.mode](step, cfg, memory)
-    # Lock-up guard (ALGORITHMS.md 5): the reject_reset_n-th rejection in a row becomes a plain
-    # update with the nominal R and the memory starts afresh.
+    # Lock-up guard (ALGORITHMS.md 5): the reject_reset_n-th rejection in a row, or the
+    # row_reset_n-th removal in a row of one row, becomes a plain update with the nominal R and
+    # the memory starts afresh.
+    removed = [bool(w == 0.0) for w in outcome.w]
+    n_removed = [int(v) for v in state.n_removed]
     reset = bool(outcome.rejected) and 0 < cfg.reject_reset_n <= int(state.n_reject) + 1
+    reset = reset or any(r and 0 < cfg.row_reset_n <= n_removed[i] + 1 for i, r in enumerate(removed))
     if reset:
         x_plus, P_plus, plain = kf_update(x, P, H, z, R)
         memory = RobustState()
@@ -768,6 +774,9 @@ def robust_update(
         )
     else:
         memory.n_reject = min(int(state.n_reject) + 1, 254) if outcome.rejected else 0
+        for i, r in enumerate(removed):
+            n_removed[i] = min(n_removed[i] + 1, 254) if r else 0
+        memory.n_removed = n_removed
     # Step 6 extended to the memory: an update that would leave it non-finite (AKF e = nu^T nu
     # overflowing) changes nothing, like one that would leave x+ or P+ non-finite.
     if not _memory_is_finite(memory):
@@ -781,6 +790,7 @@ def robust_update(
         memory.started,
         memory.n_reject,
     )
+    state.n_removed = list(memory.n_removed)
     return (
         x_plus,
         P_plus,
