@@ -258,14 +258,14 @@ static const mca_hist_entry_t *hist_find(const mca_nav_t *nav, int64_t t)
     }
     /* the nearest is the first entry at or after t, or the one before it (older on ties) */
     const uint16_t k = hist_lower_bound(nav, oldest, t32);
-    const mca_hist_entry_t *before = hist_at(nav, oldest, (uint16_t)(k - 1u)); /* k >= 1: t >= oldest */
+    if (k == 0u) {
+        return hist_at(nav, oldest, 0u); /* t is the oldest entry's time */
+    }
+    const mca_hist_entry_t *before = hist_at(nav, oldest, (uint16_t)(k - 1u));
     if (k == nav->hist_count) {
         return before;
     }
     const mca_hist_entry_t *after = hist_at(nav, oldest, k);
-    if (k == 0u) {
-        return after;
-    }
     return (after->t_us - t32) < (t32 - before->t_us) ? after : before;
 }
 
@@ -411,9 +411,12 @@ static mca_status_t cs_predict(mca_nav_t *nav, uint64_t t_fix, float t)
         const float ah2 = (inc[0].dv_mps * inc[0].dv_mps + inc[1].dv_mps * inc[1].dv_mps) / (t * t);
         const float var_h = s2 + g2 * (pa[0] + pa[7]) + ah2 * pa[14];
         const int yaw_ok = !yaw_unobserved(nav);
+        /* the increments of finite history entries are finite; a variance that overflowed
+         * (P_att huge) leaves the fix with the CS filter's own test rather than refusing it */
+        const int aid_h = yaw_ok && isfinite(var_h);
         for (size_t i = 0; i < 3u; ++i) {
             inc[i].acc_var_m2ps4 = i < 2u ? var_h : s2;
-            use[i] = (i == 2u || yaw_ok) ? &inc[i] : NULL;
+            use[i] = (i == 2u || aid_h) ? &inc[i] : NULL;
         }
     }
     return mca_cs3_predict_aided(&nav->cs, t, use);

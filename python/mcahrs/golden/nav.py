@@ -832,10 +832,10 @@ class Nav:
         s2 = cfg.imu_acc_sigma_mps2**2
         ah2 = (dv[0] ** 2 + dv[1] ** 2) / T**2
         var_h = s2 + self.g**2 * (self.P[0, 0] + self.P[1, 1]) + ah2 * self.P[2, 2]
-        yaw_ok = not (self.flags() & FLAG_YAW_UNOBSERVED)
+        aid_h = not (self.flags() & FLAG_YAW_UNOBSERVED) and math.isfinite(var_h)
         return [
             self.cs.axes[i].aided_prior(T, float(dp[i]), float(dv[i]), var_h if i < 2 else s2)
-            if (i == 2 or yaw_ok)
+            if (i == 2 or aid_h)
             else None
             for i in range(3)
         ]
