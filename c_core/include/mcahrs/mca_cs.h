@@ -113,8 +113,9 @@ mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t_s);
  * v + dv + e_g eps_v], s = G P G^T + diag(sigma_p^2 (1 - e_b^2), sigma_v^2 (1 - e_g^2)) +
  * acc_var [[t^4/4, t^3/2], [t^3/2, t^2]], G = [[1, t, 0, e_b, 0], [0, 1, 0, 0, e_g]],
  * e_b = exp(-beta t), e_g = exp(-gamma t). inc NULL: mca_cs_axis_predict.
- * Cost: the predict plus ~60 multiply-adds and two mca_expf.
- * @return MCA_ERR_BAD_DT, MCA_ERR_NONFINITE (inc not finite, or acc_var < 0: BAD_ARG), MCA_OK;
+ * Cost: the predict plus ~40 multiply-adds (e_b, e_g and the Gauss-Markov Q come from the
+ * predict's own transition).
+ * @return MCA_ERR_BAD_DT, MCA_ERR_NONFINITE (inc not finite), MCA_ERR_BAD_ARG (acc_var < 0), MCA_OK;
  *         the axis is unchanged on error.
  */
 mca_status_t mca_cs_axis_predict_aided(mca_cs_axis_t *ax, float t_s, const mca_cs_inc_t *inc);
