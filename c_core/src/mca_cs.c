@@ -358,48 +358,32 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
     if (st != MCA_OK) {
         return st;
     }
+    /* rows in mask order: 0 position (p + eps_p), 1 velocity (v + eps_v) */
     float h[MCA_CS_NZ * MCA_CS_NX] = {0};
     float z[MCA_CS_NZ], r[MCA_CS_NZ * MCA_CS_NZ] = {0};
-    size_t m = 0u;
-    if ((mask & MCA_CS_POS) != 0u) {
-        h[m * MCA_CS_NX + 0u] = 1.0f; /* p + eps_p */
-        h[m * MCA_CS_NX + 3u] = 1.0f;
-        z[m] = z_p;
-        ++m;
-    }
-    if ((mask & MCA_CS_VEL) != 0u) {
-        h[m * MCA_CS_NX + 1u] = 1.0f; /* v + eps_v */
-        h[m * MCA_CS_NX + 4u] = 1.0f;
-        z[m] = z_v;
-        ++m;
-    }
-    if (m == 2u) {
-        r[0] = r_p;
-        r[3] = r_v;
-    } else {
-        r[0] = (mask & MCA_CS_POS) != 0u ? r_p : r_v;
-    }
-    if (ax->aid.valid == 0u) {
-        return mca_kf_update_tested(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs, NULL, NULL, ws,
-                                    MCA_CS_WS_LEN, rep);
-    }
-    /* test z against the IMU-aided prediction: rows of the mask, covariance s + R */
-    float nu_t[MCA_CS_NZ], c_t[MCA_CS_NZ * MCA_CS_NZ];
-    size_t rows[MCA_CS_NZ], k = 0u;
-    if ((mask & MCA_CS_POS) != 0u) {
-        rows[k++] = 0u;
-    }
-    if ((mask & MCA_CS_VEL) != 0u) {
-        rows[k++] = 1u;
+    size_t rows[MCA_CS_NZ], m = 0u;
+    for (size_t q = 0; q < MCA_CS_NZ; ++q) {
+        if ((mask & (1u << q)) != 0u) {
+            h[m * MCA_CS_NX + q] = 1.0f;
+            h[m * MCA_CS_NX + 3u + q] = 1.0f;
+            z[m] = q == 0u ? z_p : z_v;
+            rows[m++] = q;
+        }
     }
     for (size_t i = 0; i < m; ++i) {
+        r[i * m + i] = rows[i] == 0u ? r_p : r_v;
+    }
+    /* after an aided predict the mode tests z against the IMU-aided prediction, covariance s + R */
+    const int aided = ax->aid.valid != 0u;
+    float nu_t[MCA_CS_NZ], c_t[MCA_CS_NZ * MCA_CS_NZ];
+    for (size_t i = 0; i < m && aided; ++i) {
         nu_t[i] = z[i] - ax->aid.y[rows[i]];
         for (size_t j = 0; j < m; ++j) {
             c_t[i * m + j] = ax->aid.s[rows[i] * MCA_CS_NZ + rows[j]] + r[i * m + j];
         }
     }
     const mca_status_t su = mca_kf_update_tested(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs,
-                                                 nu_t, c_t, ws, MCA_CS_WS_LEN, rep);
+                                                 aided ? nu_t : NULL, aided ? c_t : NULL, ws, MCA_CS_WS_LEN, rep);
     if (su == MCA_OK) {
         ax->aid.valid = 0u;
     }

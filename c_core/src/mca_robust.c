@@ -455,6 +455,18 @@ static void solve_rows(const float *l, float *kk, size_t n, size_t m)
     }
 }
 
+/* nu^T C^-1 nu from the Cholesky factor l of C; t (m) is scratch. */
+static float nis(const float *l, const float *nu, float *t, size_t m)
+{
+    memcpy(t, nu, m * sizeof(float));
+    mca_cholesky_solve(l, t, m);
+    float s = 0.0f;
+    for (size_t i = 0; i < m; ++i) {
+        s += nu[i] * t[i];
+    }
+    return s;
+}
+
 /* 1 when the gain covariance differs from C (re-factor needed). Plain and undetected epochs
  * return 0, so they are the section-1 update bit for bit. */
 static int refactor_needed(const mca_plan_t *pl, size_t m)
@@ -662,12 +674,7 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
         return MCA_ERR_SINGULAR;
     }
     /* step 3: T = nu^T C^-1 nu */
-    memcpy(t, y, m * sizeof(float));
-    mca_cholesky_solve(l, t, m);
-    float t_stat = 0.0f;
-    for (size_t i = 0; i < m; ++i) {
-        t_stat += y[i] * t[i];
-    }
+    float t_stat = nis(l, y, t, m);
     /* The innovation the mode tests: the update's own, or the caller's test innovation. */
     const float *nu_m = y;
     float *c_m = c;
@@ -677,12 +684,7 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
         if (mca_cholesky(lt, ct, m) != MCA_OK) {
             return MCA_ERR_SINGULAR;
         }
-        memcpy(t, nu_t, m * sizeof(float));
-        mca_cholesky_solve(lt, t, m);
-        t_stat = 0.0f;
-        for (size_t i = 0; i < m; ++i) {
-            t_stat += nu_t[i] * t[i];
-        }
+        t_stat = nis(lt, nu_t, t, m);
         nu_m = nu_t;
         c_m = ct;
     }

@@ -713,27 +713,21 @@ class Nav:
             self._remember_fix(fx, has_vel)
             return
         aids = self._aided_priors(fx.t_us, T)
+        # Step 4 inputs: N, E position (+ velocity); D position with altitude on a 3-D fix, velocity.
+        vel_mask = MASK_VEL if has_ne else 0
+        d_mask = (MASK_POS if (has_alt and fx.fix_type >= 3) else 0) | (MASK_VEL if has_d else 0)
+        masks = (MASK_POS | vel_mask, MASK_POS | vel_mask, d_mask)
+        r_p = (fx.h_acc**2, fx.h_acc**2, fx.v_acc**2)
         saved = [(ax.x, ax.P, ax.s2, ax.initialised) for ax in self.cs.axes]
         try:
             self.cs.predict(T)
             # Step 4: CS update.
-            vel_mask = MASK_VEL if has_ne else 0
-            d_mask = (MASK_POS if (has_alt and fx.fix_type >= 3) else 0) | (MASK_VEL if has_d else 0)
-            reports = self.cs.update(
-                z_p=ned,
-                z_v=fx.vel,
-                r_p=(fx.h_acc**2, fx.h_acc**2, fx.v_acc**2),
-                r_v=(fx.s_acc**2,) * 3,
-                mask=(MASK_POS | vel_mask, MASK_POS | vel_mask, d_mask),
-            )
+            reports = self.cs.update(z_p=ned, z_v=fx.vel, r_p=r_p, r_v=(fx.s_acc**2,) * 3, mask=masks)
         except McaError:
             for ax, (x, P, s2, ini) in zip(self.cs.axes, saved, strict=True):
                 ax.x, ax.P, ax.s2, ax.initialised = x, P, s2, ini
             raise
-        # From here on nothing raises.
-        r_p = (fx.h_acc**2, fx.h_acc**2, fx.v_acc**2)
-        d_mask = (MASK_POS if (has_alt and fx.fix_type >= 3) else 0) | (MASK_VEL if has_d else 0)
-        masks = (MASK_POS | vel_mask, MASK_POS | vel_mask, d_mask)
+        # From here on nothing raises. The reported T is the tested one (GPS step 3).
         for i, rep in enumerate(reports):
             if rep is None:
                 continue
