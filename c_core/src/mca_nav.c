@@ -549,6 +549,103 @@ mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float
     return MCA_OK;
 }
 
+/* GPS steps 2-4 of a fix within dt_max of the last one (ALGORITHMS.md 8): the CS predict to
+ * the fix and the three axis updates. Its own frame, so the attitude observations after it do
+ * not carry its arrays on their (deeper) call chain. */
+MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix, const mca_fix_view_t *fv,
+                                        const float ned[3], float t)
+{
+    mca_status_t st = cs_predict(nav, fix->t_us, t);
+    if (st != MCA_OK) {
+        return st;
+    }
+    const int has_vne = (fv->vel_mask & 3u) == 3u;
+    const int has_vd = (fv->vel_mask & 4u) != 0u;
+    const float h_acc = fv->h_acc_m, v_acc = fv->v_acc_m, s_acc = fv->s_acc_mps;
+    const uint8_t mask[3] = {(uint8_t)(MCA_CS_POS | (has_vne ? MCA_CS_VEL : 0u)),
+                             (uint8_t)(MCA_CS_POS | (has_vne ? MCA_CS_VEL : 0u)),
+                             (uint8_t)(((fv->has_alt != 0u && fix->fix_type >= 3u) ? MCA_CS_POS : 0u) |
+                                       (has_vd ? MCA_CS_VEL : 0u))};
+    const float rp[3] = {h_acc * h_acc, h_acc * h_acc, v_acc * v_acc};
+    const float rv = s_acc * s_acc;
+    /* Axis by axis, no report (T is read from the axis memory). Every input was checked
+     * above and the masks are well formed, so an axis can fail only numerically, and
+     * then it is left unchanged (mca_cs_axis_update is atomic). */
+    for (size_t i = 0; i < 3u; ++i) {
+        if (mask[i] == 0u) {
+            continue;
+        }
+        const mca_status_t su =
+            mca_cs_axis_update(&nav->cs.axis[i], ned[i], fv->vel_ned_mps[i], rp[i], rv, mask[i], nav->ws, NULL);
+        if (su == MCA_OK) {
+            nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat;
+        } else if (st == MCA_OK) {
+            st = su;
+        }
+    }
+    return st;
+}
+
+/* GPS steps 5-6 after the CS updates: the compensation acceleration, the roll/pitch
+ * observation and the course-over-ground yaw observation (failures are counted skips or
+ * gates, not errors). */
+MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, const mca_fix_view_t *fv)
+{
+    const float *vel = fv->vel_ned_mps;
+    const uint8_t vmask = fv->vel_mask;
+    const float s_acc = fv->s_acc_mps;
+    const float g2 = nav->g_mps2 * nav->g_mps2;
+    float acc[3] = {0.0f, 0.0f, 0.0f};
+    float r_acc = 0.0f;
+    int observe = nav->aligned;
+    const mca_hist_entry_t *e = NULL;
+    if (nav->cfg.comp_mode == MCA_COMP_CS) {
+        for (size_t i = 0; i < 3u; ++i) {
+            acc[i] = nav->cs.axis[i].x[2];
+        }
+        r_acc = (nav->cs.axis[0].p[12] + nav->cs.axis[1].p[12]) / (2.0f * g2);
+        e = hist_find(nav, (int64_t)fix->t_us - (int64_t)us(nav->cfg.cs_lag_s));
+    } else if (nav->cfg.comp_mode == MCA_COMP_VELDIFF) {
+        const float dtf = span_s(nav->t_prevfix_us, fix->t_us);
+        if (fix->t_us - nav->t_prevfix_us > us(nav->cfg.gps_timeout_s)) {
+            observe = 0;
+            if (nav->aligned) {
+                gravity_skip(nav); /* no usable previous fix */
+            }
+        }
+        for (size_t i = 0; i < 3u; ++i) {
+            const uint8_t bit = (uint8_t)(1u << i);
+            if ((vmask & bit) != 0u && (nav->prev_vel_mask & bit) != 0u) {
+                acc[i] = (vel[i] - nav->vel_prev[i]) / dtf;
+            }
+        }
+        r_acc = 2.0f * s_acc * s_acc / (dtf * dtf * g2);
+        e = hist_find(nav, (int64_t)fix->t_us);
+    } else {
+        e = hist_newest(nav);
+    }
+    memcpy(nav->acc_comp_n, acc, sizeof(acc));
+    if (nav->cfg.comp_mode != MCA_COMP_OFF) {
+        /* a yaw error turns the horizontal compensation (ALGORITHMS.md 8, GPS step 5) */
+        r_acc += (acc[0] * acc[0] + acc[1] * acc[1]) * nav->att.p[14] / g2;
+    }
+    if (observe) {
+        (void)gravity_obs(nav, e, NULL, acc, r_acc); /* failures are counted skips */
+    }
+    /* the course observation does not depend on the roll/pitch attempt (GPS step 6) */
+    if (nav->aligned) {
+        const float speed = sqrtf(vel[0] * vel[0] + vel[1] * vel[1]);
+        if (nav->cfg.yaw_source == MCA_YAW_COG && (vmask & 3u) == 3u && speed >= nav->cfg.cog_min_speed_mps &&
+            speed > 0.0f) {
+            const mca_hist_entry_t *ec = hist_find(nav, (int64_t)fix->t_us);
+            if (ec != NULL) {
+                const float r = nav->cfg.cog_sigma0_rad * nav->cfg.cog_sigma0_rad + (s_acc / speed) * (s_acc / speed);
+                (void)yaw_obs(nav, mca_atan2f(vel[1], vel[0]), r, ec->q_nb); /* gates are not errors */
+            }
+        }
+    }
+}
+
 mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
 {
     if (nav == NULL || fix == NULL) {
@@ -564,12 +661,6 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
         return MCA_ERR_TIME_BACKWARDS;
     }
     const int has_alt = fv.has_alt != 0u;
-    const int has_vne = (fv.vel_mask & 3u) == 3u;
-    const int has_vd = (fv.vel_mask & 4u) != 0u;
-    const float *vel = fv.vel_ned_mps;
-    const uint8_t vmask = fv.vel_mask;
-    const float h_acc = fv.h_acc_m, v_acc = fv.v_acc_m, s_acc = fv.s_acc_mps;
-
     if (!nav->home_set) {
         (void)mca_geo_set_home(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
         nav->home_set = 1u;
@@ -577,103 +668,28 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             const float lat = (float)fix->lat_e7 * 1.74532925199433e-9f;
             nav->g_mps2 = mca_geo_gravity(lat, (float)nav->home.alt_mm * 1e-3f);
         }
-        (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, NULL, vel);
+        (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, NULL, fv.vel_ned_mps);
         memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
     } else {
         float ned[3];
         (void)mca_geo_to_ned(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : nav->home.alt_mm, ned);
         const float t = span_s(nav->t_lastfix_us, fix->t_us);
         if (t > nav->cfg.cs_h.dt_max_s || t > nav->cfg.cs_v.dt_max_s) {
-            (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel);
+            (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, fv.vel_ned_mps);
             memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
         } else {
-            mca_status_t st = cs_predict(nav, fix->t_us, t);
+            const mca_status_t st = gps_cs(nav, fix, &fv, ned, t);
             if (st != MCA_OK) {
                 return st;
             }
-            const uint8_t mask[3] = {(uint8_t)(MCA_CS_POS | (has_vne ? MCA_CS_VEL : 0u)),
-                                     (uint8_t)(MCA_CS_POS | (has_vne ? MCA_CS_VEL : 0u)),
-                                     (uint8_t)(((has_alt && fix->fix_type >= 3u) ? MCA_CS_POS : 0u) |
-                                               (has_vd ? MCA_CS_VEL : 0u))};
-            const float rp[3] = {h_acc * h_acc, h_acc * h_acc, v_acc * v_acc};
-            const float rv[3] = {s_acc * s_acc, s_acc * s_acc, s_acc * s_acc};
-            /* Axis by axis, no report (T is read from the axis memory). Every input was checked
-             * above and the masks are well formed, so an axis can fail only numerically, and
-             * then it is left unchanged (mca_cs_axis_update is atomic). */
-            for (size_t i = 0; i < 3u; ++i) {
-                if (mask[i] == 0u) {
-                    continue;
-                }
-                const mca_status_t su = mca_cs_axis_update(&nav->cs.axis[i], ned[i], vel[i], rp[i], rv[i], mask[i],
-                                                           nav->ws, NULL);
-                if (su == MCA_OK) {
-                    nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat;
-                } else if (st == MCA_OK) {
-                    st = su;
-                }
-            }
-            if (st != MCA_OK) {
-                return st;
-            }
-            /* compensation acceleration (step 5) and the observation (step 6) */
-            const float g2 = nav->g_mps2 * nav->g_mps2;
-            float acc[3] = {0.0f, 0.0f, 0.0f};
-            float r_acc = 0.0f;
-            int observe = nav->aligned;
-            const mca_hist_entry_t *e = NULL;
-            if (nav->cfg.comp_mode == MCA_COMP_CS) {
-                for (size_t i = 0; i < 3u; ++i) {
-                    acc[i] = nav->cs.axis[i].x[2];
-                }
-                r_acc = (nav->cs.axis[0].p[12] + nav->cs.axis[1].p[12]) / (2.0f * g2);
-                e = hist_find(nav, (int64_t)fix->t_us - (int64_t)us(nav->cfg.cs_lag_s));
-            } else if (nav->cfg.comp_mode == MCA_COMP_VELDIFF) {
-                const float dtf = span_s(nav->t_prevfix_us, fix->t_us);
-                if (fix->t_us - nav->t_prevfix_us > us(nav->cfg.gps_timeout_s)) {
-                    observe = 0;
-                    if (nav->aligned) {
-                        gravity_skip(nav); /* no usable previous fix */
-                    }
-                }
-                for (size_t i = 0; i < 3u; ++i) {
-                    const uint8_t bit = (uint8_t)(1u << i);
-                    if ((vmask & bit) != 0u && (nav->prev_vel_mask & bit) != 0u) {
-                        acc[i] = (vel[i] - nav->vel_prev[i]) / dtf;
-                    }
-                }
-                r_acc = 2.0f * s_acc * s_acc / (dtf * dtf * g2);
-                e = hist_find(nav, (int64_t)fix->t_us);
-            } else {
-                e = hist_newest(nav);
-            }
-            memcpy(nav->acc_comp_n, acc, sizeof(acc));
-            if (nav->cfg.comp_mode != MCA_COMP_OFF) {
-                /* a yaw error turns the horizontal compensation (ALGORITHMS.md 8, GPS step 5) */
-                r_acc += (acc[0] * acc[0] + acc[1] * acc[1]) * nav->att.p[14] / g2;
-            }
-            if (observe) {
-                (void)gravity_obs(nav, e, NULL, acc, r_acc); /* failures are counted skips */
-            }
-            /* the course observation does not depend on the roll/pitch attempt (GPS step 6) */
-            if (nav->aligned) {
-                const float speed = sqrtf(vel[0] * vel[0] + vel[1] * vel[1]);
-                if (nav->cfg.yaw_source == MCA_YAW_COG && has_vne && speed >= nav->cfg.cog_min_speed_mps &&
-                    speed > 0.0f) {
-                    const mca_hist_entry_t *ec = hist_find(nav, (int64_t)fix->t_us);
-                    if (ec != NULL) {
-                        const float r = nav->cfg.cog_sigma0_rad * nav->cfg.cog_sigma0_rad +
-                                        (s_acc / speed) * (s_acc / speed);
-                        (void)yaw_obs(nav, mca_atan2f(vel[1], vel[0]), r, ec->q_nb); /* gates are not errors */
-                    }
-                }
-            }
+            gps_attitude(nav, fix, &fv);
         }
     }
     nav->have_fix = 1u;
     nav->t_lastfix_us = fix->t_us;
     nav->t_prevfix_us = fix->t_us;
-    memcpy(nav->vel_prev, vel, sizeof(nav->vel_prev));
-    nav->prev_vel_mask = vmask;
+    memcpy(nav->vel_prev, fv.vel_ned_mps, sizeof(nav->vel_prev));
+    nav->prev_vel_mask = fv.vel_mask;
     return MCA_OK;
 }
 

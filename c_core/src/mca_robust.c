@@ -1,6 +1,7 @@
 /* The one Kalman measurement update and its robust/adaptive modes (docs/ALGORITHMS.md
  * sections 1 and 5). See mca_robust.h. */
 #include "mcahrs/mca_robust.h"
+#include "mca_cold.h"
 
 #include <math.h>
 #include <string.h>
@@ -587,6 +588,163 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
     return MCA_OK;
 }
 
+/* 1 when every entry of x (n) and P (n x n) is finite. */
+static int state_finite(const float *x, const float *p, size_t n)
+{
+    return mca_all_finite(x, n) && mca_all_finite(p, n * n);
+}
+
+/* 1 when R (m x m) has no non-zero entry off its diagonal. */
+static int r_diagonal(const float *r, size_t m)
+{
+    for (size_t i = 0; i < m; ++i) {
+        for (size_t j = 0; j < m; ++j) {
+            if (i != j && nonzero(r[i * m + j])) {
+                return 0;
+            }
+        }
+    }
+    return 1;
+}
+
+/* Copies n floats from src to dst; returns +0 when every one is finite, NaN otherwise
+ * (the sum of v - v). */
+static float copy_finite(float *dst, const float *src, size_t n)
+{
+    float fin = 0.0f;
+    for (size_t i = 0; i < n; ++i) {
+        dst[i] = src[i];
+        fin += src[i] - src[i];
+    }
+    return fin;
+}
+
+/* Section-1 steps 4-6 one row at a time (ALGORITHMS.md 1, sequential form): for a diagonal
+ * R_eff = R + diag(d) and an unscaled gain (gamma 1) the joint update equals the kept rows
+ * applied one after the other as scalar updates, each on the state and covariance the previous
+ * one left. Row i: u = P h_i^T, s = h_i u + R_eff,ii, k = u / s, x += k (z_i - h_i x), and Joseph
+ * expanded as in apply(), P += a k^T + k a^T with a = k s / 2 - u (upper triangle, mirrored).
+ * No m x m factor, no gain solve and no K S product: O(n^2) per row instead of O(n^2 m + n m^2)
+ * with an m x m Cholesky. keep: bit i set, row i is applied; d: the R increments (NULL: none).
+ * Works in ws (general layout: pn, then u, k, a in the kk, a, b blocks, xn in its own) and
+ * writes x, p only when x and P are finite, every row's s is positive and the result is finite.
+ * t_rows: the sum of the rows' nu_i^2 / s_i, which is T = nu^T C^-1 nu (the s_i are the squared
+ * pivots of C's Cholesky factor, the nu_i / sqrt(s_i) its forward substitution of nu). */
+MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const float *h, const float *z,
+                                            const float *r, size_t m, unsigned keep, const float *d, float *ws,
+                                            float *t_rows)
+{
+    float *pn = ws;
+    float *u = pn + n * n;
+    float *k = u + n * m;
+    float *av = k + n * m;
+    float *xn = av + 2u * n * m + 2u * m * m;
+    if (!isfinite(copy_finite(xn, x, n) + copy_finite(pn, p, n * n))) {
+        return MCA_ERR_NONFINITE; /* the copies check the inputs x and P */
+    }
+    float t_sum = 0.0f;
+    for (size_t row = 0; row < m; ++row) {
+        if ((keep & (1u << row)) == 0u) {
+            continue;
+        }
+        const float *hr = &h[row * n];
+        for (size_t i = 0; i < n; ++i) {
+            u[i] = 0.0f;
+        }
+        float hx = 0.0f;
+        for (size_t l = 0; l < n; ++l) {
+            const float hv = hr[l];
+            if (!nonzero(hv)) {
+                continue;
+            }
+            hx += hv * xn[l];
+            const float *pl_row = &pn[l * n]; /* row l = column l (P symmetric) */
+            for (size_t i = 0; i < n; ++i) {
+                u[i] += pl_row[i] * hv;
+            }
+        }
+        float s = r[row * m + row] + (d != NULL ? d[row] : 0.0f);
+        for (size_t l = 0; l < n; ++l) {
+            s += hr[l] * u[l]; /* u is finite: a zero h adds +-0 */
+        }
+        if (!(s > 0.0f)) {
+            return MCA_ERR_SINGULAR; /* the row's innovation variance is not positive (an overflow
+                                        to +inf makes a NaN below: NONFINITE) */
+        }
+        const float inv = 1.0f / s, half = 0.5f * s, nu = z[row] - hx;
+        t_sum += nu * (nu * inv);
+        for (size_t i = 0; i < n; ++i) {
+            k[i] = u[i] * inv;
+            av[i] = k[i] * half - u[i];
+            xn[i] += k[i] * nu;
+        }
+        for (size_t i = 0; i < n; ++i) {
+            const float ai = av[i], ki = k[i];
+            for (size_t j = i; j < n; ++j) {
+                const float v = pn[i * n + j] + (ai * k[j] + ki * av[j]);
+                pn[i * n + j] = v;
+                pn[j * n + i] = v;
+            }
+        }
+    }
+    if (!mca_all_finite(xn, n) || !mca_all_finite(pn, n * n)) {
+        return MCA_ERR_NONFINITE;
+    }
+    memcpy(x, xn, n * sizeof(float));
+    memcpy(p, pn, n * n * sizeof(float));
+    *t_rows = t_sum;
+    return MCA_OK;
+}
+
+/* T = nu_t^T C_t^-1 nu_t of a test innovation: C_t symmetrised into ct, factored into lt, t
+ * (m) scratch. SINGULAR when C_t is not positive definite. */
+static mca_status_t test_stat(const float *nu_t, const float *c_t, float *ct, float *lt, float *t, size_t m,
+                              float *t_stat)
+{
+    for (size_t i = 0; i < m * m; ++i) {
+        ct[i] = c_t[i];
+    }
+    mca_mat_symmetrize(ct, m);
+    if (mca_cholesky(lt, ct, m) != MCA_OK) {
+        return MCA_ERR_SINGULAR;
+    }
+    *t_stat = nis(lt, nu_t, t, m);
+    return MCA_OK;
+}
+
+/* Plain mode, diagonal R, no report: the rows one by one (apply_rows), T from them or from the
+ * test innovation, and the memory's counters as the general path leaves them in plain mode.
+ * ws in the general layout. */
+MCA_NOINLINE static mca_status_t update_plain_rows(float *x, float *p, size_t n, const float *h, const float *z,
+                                                   const float *r, size_t m, mca_robust_state_t *rs,
+                                                   const float *nu_t, const float *c_t, float *ws)
+{
+    float *ct = ws + n * n + 4u * n * m + 2u * m * m + n + m;
+    float t_stat = 0.0f;
+    if (nu_t != NULL) {
+        const mca_status_t s = test_stat(nu_t, c_t, ct, ct + m * m, ct - m, m, &t_stat);
+        if (s != MCA_OK) {
+            return s;
+        }
+    }
+    float t_rows;
+    const mca_status_t st = apply_rows(x, p, n, h, z, r, m, (1u << m) - 1u, NULL, ws, &t_rows);
+    if (st != MCA_OK) {
+        return st;
+    }
+    if (nu_t == NULL) {
+        t_stat = t_rows;
+    }
+    if (rs != NULL) {
+        rs->n_reject = 0u;
+        for (size_t i = 0; i < m; ++i) {
+            rs->n_removed[i] = 0u;
+        }
+        rs->t_stat = t_stat;
+    }
+    return MCA_OK;
+}
+
 /* ---------------------------------------------------------------- the update */
 
 mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const float *z,
@@ -596,6 +754,13 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
 {
     return mca_kf_update_tested(x, p, n, h, z, r, m, rc, rs, NULL, NULL, ws, ws_len, rep);
 }
+
+/* Every mode, any R: nominal nu and C, the mode's plan on T (or the test's), the lock-up
+ * guard, the row-by-row or the joint update, the memory committed. Arguments checked. */
+MCA_NOINLINE static mca_status_t update_general(float *x, float *p, size_t n, const float *h, const float *z,
+                                                const float *r, size_t m, const mca_robust_config_t *rc,
+                                                mca_robust_state_t *rs, const float *nu_t, const float *c_t,
+                                                float *ws, mca_update_report_t *rep);
 
 mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, const float *z,
                                   const float *r, size_t m, const mca_robust_config_t *rc,
@@ -625,11 +790,26 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
             return MCA_ERR_BAD_ARG;
         }
     }
-    if (!mca_all_finite(z, m) || !mca_all_finite(r, m * m) || !mca_all_finite(x, n) ||
-        !mca_all_finite(p, n * n) || !mca_all_finite(h, m * n) ||
+    /* x and P are checked where they are read in full: in the row-by-row update's copies, else
+     * before the joint update, a rejection, or a SINGULAR status (which a non-finite P causes) */
+    if (!mca_all_finite(z, m) || !mca_all_finite(r, m * m) || !mca_all_finite(h, m * n) ||
         (tested && (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m)))) {
         return MCA_ERR_NONFINITE;
     }
+    /* Plain mode with a diagonal R needs neither nu nor C before the update: the rows give T.
+     * They are formed only for a report (the general path). */
+    if (mode == MCA_ROBUST_PLAIN && rep == NULL && r_diagonal(r, m)) {
+        return update_plain_rows(x, p, n, h, z, r, m, rs, nu_t, c_t, ws);
+    }
+    return update_general(x, p, n, h, z, r, m, rc, rs, nu_t, c_t, ws, rep);
+}
+
+static mca_status_t update_general(float *x, float *p, size_t n, const float *h, const float *z, const float *r,
+                                   size_t m, const mca_robust_config_t *rc, mca_robust_state_t *rs,
+                                   const float *nu_t, const float *c_t, float *ws, mca_update_report_t *rep)
+{
+    const int tested = nu_t != NULL;
+    const mca_robust_mode_t mode = rc != NULL ? (mca_robust_mode_t)rc->mode : MCA_ROBUST_PLAIN;
     /* Scratch layout (MCA_KF_WS_LEN(n, m) floats): pn (n x n); kk (n x m): P H^T, then K in
      * place; a (n x m): U = P H^T for the Joseph step; b (n x m): K S; t (n x m): C^-1 nu,
      * then the per-row R increments d (m); c, l (m x m); xn (n); y (m); ct, lt (m x m): the
@@ -645,6 +825,7 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     float *y = xn + n;
     float *ct = y + m;
     float *lt = ct + m * m;
+
 
     /* nu = z - H x -> y; C = H P H^T + R (ALGORITHMS.md 1, step 1) */
     h_times_vec(y, h, x, m, n);
@@ -671,7 +852,7 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     }
     /* step 2: C positive definite */
     if (mca_cholesky(l, c, m) != MCA_OK) {
-        return MCA_ERR_SINGULAR;
+        return state_finite(x, p, n) ? MCA_ERR_SINGULAR : MCA_ERR_NONFINITE;
     }
     /* step 3: T = nu^T C^-1 nu */
     float t_stat = nis(l, y, t, m);
@@ -679,12 +860,10 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     const float *nu_m = y;
     float *c_m = c;
     if (tested) {
-        memcpy(ct, c_t, m * m * sizeof(float));
-        mca_mat_symmetrize(ct, m);
-        if (mca_cholesky(lt, ct, m) != MCA_OK) {
-            return MCA_ERR_SINGULAR;
+        const mca_status_t s = test_stat(nu_t, c_t, ct, lt, t, m, &t_stat);
+        if (s != MCA_OK) {
+            return s;
         }
-        t_stat = nis(lt, nu_t, t, m);
         nu_m = nu_t;
         c_m = ct;
     }
@@ -758,11 +937,20 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
             }
         }
     }
-    if (!pl.rejected) {
+    if (!pl.rejected && !(pl.gamma > 1.0f) && r_diagonal(r, m)) {
+        /* an unscaled gain with a diagonal R_eff: row by row (checks x and P as it copies them) */
+        float t_rows;
+        const mca_status_t st = apply_rows(x, p, n, h, z, r, m, pl.keep, pl.use_d ? t : NULL, ws, &t_rows);
+        if (st != MCA_OK) {
+            return st; /* x, p, rs untouched */
+        }
+    } else if (!state_finite(x, p, n)) {
+        return MCA_ERR_NONFINITE; /* nothing is committed from a non-finite state */
+    } else if (!pl.rejected) {
         const mca_status_t st = apply(x, p, n, h, r, m, &pl, a, b, pn, kk, t, c, l, xn, y,
                                       refactor_needed(&pl, m), c_has_d);
         if (st != MCA_OK) {
-            return st; /* x, p, rs untouched */
+            return st;
         }
     }
     /* Commit the memory (the update, if any, is already in x, p). */
@@ -788,7 +976,8 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     }
     if (rs != NULL && !reset) {
         rs->n_reject = pl.rejected ? (uint8_t)(rs->n_reject < 254u ? rs->n_reject + 1u : 254u) : 0u;
-        for (size_t i = 0; i < m; ++i) {
+        for (size_t i = 0; i < m && i < MCA_MEAS_MAX; ++i) { /* m <= MCA_MEAS_MAX (checked): the
+                                                                 bound is for the compiler */
             const uint8_t k = rs->n_removed[i];
             rs->n_removed[i] = ((removed >> i) & 1u) != 0u ? (uint8_t)(k < 254u ? k + 1u : 254u) : 0u;
         }

@@ -654,6 +654,104 @@ static void test_tested_update_decides_on_the_test_innovation(void)
     CHECK(rep.factor > 1.0f);
 }
 
+/* ---------------------------------------------------------------- row by row vs joint */
+
+/* With a diagonal R the update runs row by row (ALGORITHMS.md 1, sequential form). Checked
+ * against the joint update written out in double, P+ = P - K C K^T, K = P H^T C^-1 (which is
+ * Joseph for the optimal gain), and against the joint float path (an R with a 1e-30 off-diagonal
+ * entry takes it). The report-free path and the reporting path must give the same bits. */
+static void test_row_by_row_equals_joint_update(void)
+{
+    enum { N = 5, M = 2 };
+    float p0[N * N];
+    const float a[N * N] = {1.0f,  0.2f, 0.0f, 0.9f, 0.0f, 0.1f, 0.5f,  0.1f, 0.0f, 0.3f, 0.0f, 0.2f, 0.3f,
+                            0.0f,  0.1f, 0.4f, 0.0f, 0.0f, 2.0f, 0.0f, 0.0f, 0.2f, 0.0f, 0.1f, 0.2f};
+    for (int i = 0; i < N; ++i) { /* P0 = A A^T + 0.01 I: SPD with strong p/eps_p-like coupling */
+        for (int j = 0; j < N; ++j) {
+            float s = i == j ? 0.01f : 0.0f;
+            for (int k = 0; k < N; ++k) {
+                s += a[i * N + k] * a[j * N + k];
+            }
+            p0[i * N + j] = s;
+        }
+    }
+    const float x0[N] = {1.0f, -0.5f, 0.2f, 0.3f, 0.0f};
+    const float h[M * N] = {1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f};
+    const float z[M] = {2.5f, 0.4f};
+    const float r[M * M] = {0.8f, 0.0f, 0.0f, 0.05f};
+    const float r_full[M * M] = {0.8f, 1e-30f, 1e-30f, 0.05f};
+    mca_robust_state_t rs1, rs2;
+    mca_robust_state_init(&rs1);
+    mca_robust_state_init(&rs2);
+    mca_update_report_t rep;
+    float x1[N], p1[N * N], x2[N], p2[N * N], x3[N], p3[N * N];
+    memcpy(x1, x0, sizeof(x1));
+    memcpy(p1, p0, sizeof(p1));
+    memcpy(x2, x0, sizeof(x2));
+    memcpy(p2, p0, sizeof(p2));
+    memcpy(x3, x0, sizeof(x3));
+    memcpy(p3, p0, sizeof(p3));
+    CHECK_EQ_INT(mca_kf_update(x1, p1, N, h, z, r, M, NULL, &rs1, g_ws, WS_MAX, NULL), MCA_OK);
+    CHECK_EQ_INT(mca_kf_update(x2, p2, N, h, z, r, M, NULL, &rs2, g_ws, WS_MAX, &rep), MCA_OK);
+    CHECK(memcmp(x1, x2, sizeof(x1)) == 0 && memcmp(p1, p2, sizeof(p1)) == 0);
+    CHECK_EQ_INT(mca_kf_update(x3, p3, N, h, z, r_full, M, NULL, NULL, g_ws, WS_MAX, NULL), MCA_OK);
+
+    /* the joint update in double */
+    double u[N][M], c[M][M], ci[M][M], k[N][M], nu[M];
+    for (int j = 0; j < M; ++j) {
+        double hx = 0.0;
+        for (int l = 0; l < N; ++l) {
+            hx += (double)h[j * N + l] * (double)x0[l];
+        }
+        nu[j] = (double)z[j] - hx;
+        for (int i = 0; i < N; ++i) {
+            u[i][j] = 0.0;
+            for (int l = 0; l < N; ++l) {
+                u[i][j] += (double)p0[i * N + l] * (double)h[j * N + l];
+            }
+        }
+    }
+    for (int i = 0; i < M; ++i) {
+        for (int j = 0; j < M; ++j) {
+            c[i][j] = (double)r[i * M + j];
+            for (int l = 0; l < N; ++l) {
+                c[i][j] += (double)h[i * N + l] * u[l][j];
+            }
+        }
+    }
+    const double det = c[0][0] * c[1][1] - c[0][1] * c[1][0];
+    ci[0][0] = c[1][1] / det;
+    ci[1][1] = c[0][0] / det;
+    ci[0][1] = -c[0][1] / det;
+    ci[1][0] = -c[1][0] / det;
+    double t_ref = 0.0;
+    for (int i = 0; i < M; ++i) {
+        for (int j = 0; j < M; ++j) {
+            t_ref += nu[i] * ci[i][j] * nu[j];
+        }
+    }
+    for (int i = 0; i < N; ++i) {
+        for (int j = 0; j < M; ++j) {
+            k[i][j] = u[i][0] * ci[0][j] + u[i][1] * ci[1][j];
+        }
+    }
+    for (int i = 0; i < N; ++i) {
+        const double xr = (double)x0[i] + k[i][0] * nu[0] + k[i][1] * nu[1];
+        CHECK_CLOSE(x1[i], xr, 2e-6);
+        CHECK_CLOSE(x3[i], xr, 2e-6);
+        for (int j = 0; j < N; ++j) {
+            const double pr = (double)p0[i * N + j] - (k[i][0] * u[j][0] + k[i][1] * u[j][1]);
+            CHECK_CLOSE(p1[i * N + j], pr, 2e-6);
+            CHECK_CLOSE(p3[i * N + j], pr, 2e-6);
+            CHECK(p1[i * N + j] == p1[j * N + i]);
+        }
+    }
+    /* T from the rows (no report) and from C's factor (report) */
+    CHECK_CLOSE(rs1.t_stat, t_ref, 1e-5 * t_ref);
+    CHECK_CLOSE(rep.t_stat, t_ref, 1e-5 * t_ref);
+    CHECK_CLOSE(rs2.t_stat, t_ref, 1e-5 * t_ref);
+}
+
 int main(void)
 {
     test_chi2_table_matches_closed_form();
@@ -665,5 +763,6 @@ int main(void)
     test_more_rows_than_states();
     test_long_run_p_stays_spd_every_mode();
     test_tested_update_decides_on_the_test_innovation();
+    test_row_by_row_equals_joint_update();
     TEST_MAIN_END();
 }
