@@ -9,7 +9,9 @@ mps2-an386 -icount shift=0`` with QEMU's translation and execution logs
 (``-d in_asm,exec,nochain``), streamed through a pipe, never written to disk. Each executed
 translation block is credited with its guest instruction count to the function that holds its
 address (``arm-none-eabi-nm``). Only blocks executed inside a call of ``--entry`` are counted:
-from its first instruction until a block of the replay program (the caller) runs again. So it
+from its first instruction until a block of the function it was called from runs again. The
+entry may be any function of the image, static ones included (``--entry gps_cs``: the CS part of
+the GPS step), if it is not recursive. So it
 prints where the entry point's instructions go, per call, self and by function, the way
 callgrind does on the host but with the target's own code (-Os Thumb-2, FPv4). ``--lines F``
 splits function F's own instructions by source line; that needs a build with line tables
@@ -72,7 +74,6 @@ def main() -> int:
     except ValueError:
         print(f"error: {args.entry} is not a function of {elf}", file=sys.stderr)
         return 2
-    replay_funcs = {n for n in names if n.startswith("op_") or n in ("main", "run")}
 
     def func_at(pc: int) -> int:
         i = bisect.bisect_right(starts, pc) - 1
@@ -97,6 +98,7 @@ def main() -> int:
     tb_pcs: dict[str, list[int]] = {}
     inside = False
     calls = 0
+    caller = prev_func = -1
     for line in proc.stderr:
         if IN_RE.match(line):
             pending = []
@@ -114,16 +116,17 @@ def main() -> int:
             tb_pcs[host] = pending
             pending = []
         n = tb_len.get(host, 1)
+        f_now = func_at(pc)
         if pc == entry:
             if not inside:
                 calls += 1
+                caller = prev_func  # the window ends when the caller runs again
             inside = True
-        elif inside:
-            f = func_at(pc)
-            if f >= 0 and names[f] in replay_funcs:
-                inside = False
+        elif inside and f_now == caller:
+            inside = False
+        prev_func = f_now
         if inside:
-            f = func_at(pc)
+            f = f_now
             self_count[f] += n
             if f == line_func:
                 for a in tb_pcs.get(host, [pc]):

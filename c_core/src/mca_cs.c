@@ -287,7 +287,13 @@ static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float 
     }
     p[18] += qs * q[18];
     p[24] += qs * q[24];
-    mca_mat_symmetrize(p, 5u);
+    /* Phi P Phi^T by rows then columns is symmetric up to rounding: the upper triangle (what the
+     * update reads) is mirrored, not averaged (a third of mca_mat_symmetrize's instructions) */
+    for (size_t i = 1; i < 5u; ++i) {
+        for (size_t j = 0; j < i; ++j) {
+            p[5u * i + j] = p[5u * j + i];
+        }
+    }
     ax->s2_m2ps4 = s2;
 }
 

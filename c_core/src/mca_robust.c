@@ -607,29 +607,22 @@ static int r_diagonal(const float *r, size_t m)
     return 1;
 }
 
-/* Copies n floats from src to dst; returns +0 when every one is finite, NaN otherwise
- * (the sum of v - v). */
-static float copy_finite(float *dst, const float *src, size_t n)
-{
-    float fin = 0.0f;
-    for (size_t i = 0; i < n; ++i) {
-        dst[i] = src[i];
-        fin += src[i] - src[i];
-    }
-    return fin;
-}
-
 /* Section-1 steps 4-6 one row at a time (ALGORITHMS.md 1, sequential form): for a diagonal
  * R_eff = R + diag(d) and an unscaled gain (gamma 1) the joint update equals the kept rows
  * applied one after the other as scalar updates, each on the state and covariance the previous
- * one left. Row i: u = P h_i^T, s = h_i u + R_eff,ii, k = u / s, x += k (z_i - h_i x), and Joseph
- * expanded as in apply(), P += a k^T + k a^T with a = k s / 2 - u (upper triangle, mirrored).
- * No m x m factor, no gain solve and no K S product: O(n^2) per row instead of O(n^2 m + n m^2)
- * with an m x m Cholesky. keep: bit i set, row i is applied; d: the R increments (NULL: none).
- * Works in ws (general layout: pn, then u, k, a in the kk, a, b blocks, xn in its own) and
- * writes x, p only when x and P are finite, every row's s is positive and the result is finite.
- * t_rows: the sum of the rows' nu_i^2 / s_i, which is T = nu^T C^-1 nu (the s_i are the squared
- * pivots of C's Cholesky factor, the nu_i / sqrt(s_i) its forward substitution of nu). */
+ * one left. Row i: u = P h_i^T, s = h_i u + R_eff,ii, k = u / s, x += k (z_i - h_i x),
+ * P -= k u^T. For this gain (the Kalman gain of the row) Joseph's form is the same matrix:
+ * (I - k h) P (I - k h)^T + k r k^T = P - k u^T - u k^T + k s k^T = P - k u^T, as k s = u; only
+ * the inflated gains of FTA and fuzzy need Joseph (the joint path). P is kept as its upper
+ * triangle while the rows run (k_i u_j for j >= i: symmetric by construction, n(n+1)/2
+ * multiplies a row) and mirrored once at the end. No m x m factor, no gain solve: O(n^2) per
+ * row instead of O(n^2 m + n m^2) with an m x m Cholesky. P is read as the symmetric matrix its
+ * upper triangle gives (the lower one is not read, and is written as the mirror). keep: bit i
+ * set, row i is applied; d: the R increments (NULL: none). Works in ws (general layout: pn, then
+ * u, k in the kk, a blocks, xn in its own) and writes x, p only when every row's s is positive
+ * and the result is finite. t_rows: the sum of the rows' nu_i^2 / s_i, which is T = nu^T C^-1 nu (the
+ * s_i are the squared pivots of C's Cholesky factor, nu_i / sqrt(s_i) its forward substitution
+ * of nu). */
 MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const float *h, const float *z,
                                             const float *r, size_t m, unsigned keep, const float *d, float *ws,
                                             float *t_rows)
@@ -637,11 +630,11 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
     float *pn = ws;
     float *u = pn + n * n;
     float *k = u + n * m;
-    float *av = k + n * m;
-    float *xn = av + 2u * n * m + 2u * m * m;
-    if (!isfinite(copy_finite(xn, x, n) + copy_finite(pn, p, n * n))) {
-        return MCA_ERR_NONFINITE; /* the copies check the inputs x and P */
-    }
+    float *xn = k + 3u * n * m + 2u * m * m;
+    /* The first row reads x and P and writes xn, pn; the later ones work in place there. Every
+     * entry of x and of P's upper triangle reaches x+ and P+ through a sum, so the final check
+     * also catches a non-finite input. */
+    const float *xs = x, *ps = p;
     float t_sum = 0.0f;
     for (size_t row = 0; row < m; ++row) {
         if ((keep & (1u << row)) == 0u) {
@@ -657,41 +650,55 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
             if (!nonzero(hv)) {
                 continue;
             }
-            hx += hv * xn[l];
-            const float *pl_row = &pn[l * n]; /* row l = column l (P symmetric) */
-            for (size_t i = 0; i < n; ++i) {
-                u[i] += pl_row[i] * hv;
+            hx += hv * xs[l];
+            for (size_t i = 0; i < l; ++i) { /* column l of P: P_il = upper P_il above the diagonal */
+                u[i] += ps[i * n + l] * hv;
+            }
+            for (size_t i = l; i < n; ++i) { /* ... and P_li from the diagonal on */
+                u[i] += ps[l * n + i] * hv;
             }
         }
         float s = r[row * m + row] + (d != NULL ? d[row] : 0.0f);
         for (size_t l = 0; l < n; ++l) {
-            s += hr[l] * u[l]; /* u is finite: a zero h adds +-0 */
+            s += hr[l] * u[l];
         }
-        if (!(s > 0.0f)) {
-            return MCA_ERR_SINGULAR; /* the row's innovation variance is not positive (an overflow
-                                        to +inf makes a NaN below: NONFINITE) */
+        if (!(s > 0.0f)) { /* not positive: SINGULAR; NaN (from a non-finite P): NONFINITE */
+            return s <= 0.0f ? MCA_ERR_SINGULAR : MCA_ERR_NONFINITE;
         }
-        const float inv = 1.0f / s, half = 0.5f * s, nu = z[row] - hx;
+        const float inv = 1.0f / s, nu = z[row] - hx;
         t_sum += nu * (nu * inv);
         for (size_t i = 0; i < n; ++i) {
             k[i] = u[i] * inv;
-            av[i] = k[i] * half - u[i];
-            xn[i] += k[i] * nu;
+            xn[i] = xs[i] + k[i] * nu;
         }
         for (size_t i = 0; i < n; ++i) {
-            const float ai = av[i], ki = k[i];
+            const float ki = k[i];
             for (size_t j = i; j < n; ++j) {
-                const float v = pn[i * n + j] + (ai * k[j] + ki * av[j]);
-                pn[i * n + j] = v;
-                pn[j * n + i] = v;
+                pn[i * n + j] = ps[i * n + j] - ki * u[j];
             }
         }
+        xs = xn;
+        ps = pn;
     }
-    if (!mca_all_finite(xn, n) || !mca_all_finite(pn, n * n)) {
+    /* xs, ps: the result (x and P themselves when no row was kept, copied onto themselves) */
+    float fin = 0.0f; /* v - v over x+ and P+'s upper triangle: +0 while finite */
+    for (size_t i = 0; i < n; ++i) {
+        fin += xs[i] - xs[i];
+        for (size_t j = i; j < n; ++j) {
+            fin += ps[i * n + j] - ps[i * n + j];
+        }
+    }
+    if (!isfinite(fin)) {
         return MCA_ERR_NONFINITE;
     }
-    memcpy(x, xn, n * sizeof(float));
-    memcpy(p, pn, n * n * sizeof(float));
+    for (size_t i = 0; i < n; ++i) {
+        x[i] = xs[i];
+        for (size_t j = i; j < n; ++j) {
+            const float v = ps[i * n + j];
+            p[i * n + j] = v;
+            p[j * n + i] = v;
+        }
+    }
     *t_rows = t_sum;
     return MCA_OK;
 }
