@@ -597,9 +597,9 @@ static int state_finite(const float *x, const float *p, size_t n)
 /* 1 when R (m x m) has no non-zero entry off its diagonal. */
 static int r_diagonal(const float *r, size_t m)
 {
-    for (size_t i = 0; i < m; ++i) {
-        for (size_t j = 0; j < m; ++j) {
-            if (i != j && nonzero(r[i * m + j])) {
+    for (size_t i = 1; i < m; ++i) {
+        for (size_t j = 0; j < i; ++j) {
+            if (nonzero(r[i * m + j]) || nonzero(r[j * m + i])) {
                 return 0;
             }
         }
@@ -635,7 +635,7 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
      * entry of x and of P's upper triangle reaches x+ and P+ through a sum, so the final check
      * also catches a non-finite input. */
     const float *xs = x, *ps = p;
-    float t_sum = 0.0f;
+    float t_sum = 0.0f, fin = 0.0f;
     for (size_t row = 0; row < m; ++row) {
         if ((keep & (1u << row)) == 0u) {
             continue;
@@ -669,25 +669,24 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
         t_sum += nu * (nu * inv);
         for (size_t i = 0; i < n; ++i) {
             k[i] = u[i] * inv;
-            xn[i] = xs[i] + k[i] * nu;
+            const float v = xs[i] + k[i] * nu;
+            xn[i] = v;
+            fin += v - v;
         }
         for (size_t i = 0; i < n; ++i) {
             const float ki = k[i];
             for (size_t j = i; j < n; ++j) {
-                pn[i * n + j] = ps[i * n + j] - ki * u[j];
+                const float v = ps[i * n + j] - ki * u[j];
+                pn[i * n + j] = v;
+                fin += v - v;
             }
         }
         xs = xn;
         ps = pn;
     }
-    /* xs, ps: the result (x and P themselves when no row was kept, copied onto themselves) */
-    float fin = 0.0f; /* v - v over x+ and P+'s upper triangle: +0 while finite */
-    for (size_t i = 0; i < n; ++i) {
-        fin += xs[i] - xs[i];
-        for (size_t j = i; j < n; ++j) {
-            fin += ps[i * n + j] - ps[i * n + j];
-        }
-    }
+    /* xs, ps: the result (x and P themselves when no row was kept, copied onto themselves).
+     * fin, the sum of v - v over every value any row wrote, is +0 while all were finite and NaN
+     * after one that was not. */
     if (!isfinite(fin)) {
         return MCA_ERR_NONFINITE;
     }
