@@ -141,15 +141,6 @@ static void correct(mca_att_t *att, const float dx[6])
     }
 }
 
-/* C_D = C_nb(q_d)^T C_nb(q) = C(q_d^-1 (x) q): current body to body at t_d. */
-static void delay_transport(float c_d[9], const float q_d[4], const float q[4])
-{
-    const float qd_inv[4] = {q_d[0], -q_d[1], -q_d[2], -q_d[3]};
-    float qr[4];
-    mca_quat_mul(qr, qd_inv, q);
-    mca_quat_to_dcm(c_d, qr);
-}
-
 /* Update of the error state from zero with rows e (m x 3, at q_d), residual nu, diag R.
  * level_only: remove the vertical component of the attitude correction (ALGORITHMS.md 7,
  * roll/pitch step 7). */
@@ -157,13 +148,16 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
                                  const float q_d[4], int robust, int level_only, float *ws,
                                  mca_update_report_t *rep)
 {
-    float c_d[9], h[2u * MCA_ATT_NX] = {0}, dx[MCA_ATT_NX] = {0}, rm[4] = {0};
-    delay_transport(c_d, q_d, att->q_nb);
+    /* Rows at the current attitude: h_k = e_k C_D with C_D = C_nb(q_d)^T C_nb(q) = C(q_d^-1 (x) q)
+     * (current body to body at t_d), i.e. h_k^T = C_D^T e_k^T, the rotation of e_k by
+     * (q_d^-1 (x) q)^-1 = q^-1 (x) q_d: no 3 x 3 matrix. */
+    float h[2u * MCA_ATT_NX] = {0}, dx[MCA_ATT_NX] = {0}, rm[4] = {0};
+    const float *q = att->q_nb;
+    const float q_inv[4] = {q[0], -q[1], -q[2], -q[3]};
+    float q_back[4];
+    mca_quat_mul(q_back, q_inv, q_d);
     for (size_t k = 0; k < m; ++k) {
-        for (size_t j = 0; j < 3u; ++j) {
-            h[k * MCA_ATT_NX + j] = e_rows[k * 3u] * c_d[j] + e_rows[k * 3u + 1u] * c_d[3u + j] +
-                                    e_rows[k * 3u + 2u] * c_d[6u + j];
-        }
+        mca_quat_rotate(&h[k * MCA_ATT_NX], q_back, &e_rows[k * 3u]);
         rm[k * m + k] = r;
     }
     /* the _tested entry with no test directly: mca_kf_update is a wrapper frame on this path */
@@ -173,7 +167,6 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
     if (st == MCA_OK) {
         if (level_only) {
             /* u = C_nb^T e_down: the third row of C_nb, straight from q */
-            const float *q = att->q_nb;
             const float u[3] = {2.0f * (q[1] * q[3] - q[0] * q[2]), 2.0f * (q[2] * q[3] + q[0] * q[1]),
                                 1.0f - 2.0f * (q[1] * q[1] + q[2] * q[2])};
             const float dot = u[0] * dx[0] + u[1] * dx[1] + u[2] * dx[2];
@@ -186,19 +179,13 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
     return st;
 }
 
-mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4],
-                                    float g, float r_acc, float *ws, mca_update_report_t *rep)
+/* The roll/pitch measurement of mca_att_update_gravity (ALGORITHMS.md 7, gravity steps 1-5):
+ * residual nu, the rows e (at q_d) and R, or the gate's MCA_ERR_BAD_ARG. Its own frame: the
+ * gravity vector and the Euler angles are not on the stack during the update. */
+MCA_NOINLINE static mca_status_t gravity_measure(const mca_att_t *att, const float f[3], const float acc_n[3],
+                                                 const float q_d[4], float g, float r_acc, float nu[2],
+                                                 float e_rows[6], float *r)
 {
-    if (att == NULL || f == NULL || acc_n == NULL || q_d == NULL || ws == NULL) {
-        return MCA_ERR_NULL;
-    }
-    if (!mca_all_finite(f, 3u) || !mca_all_finite(acc_n, 3u) || !mca_all_finite(q_d, 4u) || !isfinite(g) ||
-        !isfinite(r_acc)) {
-        return MCA_ERR_NONFINITE;
-    }
-    if (!(g > 0.0f) || r_acc < 0.0f) {
-        return MCA_ERR_BAD_ARG;
-    }
     /* a_b = C_nb^T a_n (rotation by the conjugate, no 3 x 3 matrix); g_b = -(f - a_b) */
     const float qd_inv[4] = {q_d[0], -q_d[1], -q_d[2], -q_d[3]};
     float gb[3];
@@ -217,14 +204,41 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const floa
     }
     const float phi_m = mca_atan2f(gb[1], gb[2]);
     const float theta_m = mca_atan2f(-gb[0], sqrtf(gb[1] * gb[1] + gb[2] * gb[2]));
-    const float nu[2] = {mca_wrap_pi(phi_m - eul[0]), theta_m - eul[1]};
+    nu[0] = mca_wrap_pi(phi_m - eul[0]);
+    nu[1] = theta_m - eul[1];
     float sp, cp, st, ct;
     mca_sincosf(eul[0], &sp, &cp);
     mca_sincosf(eul[1], &st, &ct);
     const float tt = st / ct; /* |theta| <= max_tilt_obs < 90 deg */
-    const float e_rows[6] = {1.0f, sp * tt, cp * tt, 0.0f, cp, -sp};
+    e_rows[0] = 1.0f;
+    e_rows[1] = sp * tt;
+    e_rows[2] = cp * tt;
+    e_rows[3] = 0.0f;
+    e_rows[4] = cp;
+    e_rows[5] = -sp;
     const float dev = att->cfg.rp_k_dev * fabsf(gn - g) / g;
-    const float r = att->cfg.rp_sigma0_rad * att->cfg.rp_sigma0_rad + dev * dev + r_acc;
+    *r = att->cfg.rp_sigma0_rad * att->cfg.rp_sigma0_rad + dev * dev + r_acc;
+    return MCA_OK;
+}
+
+mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4],
+                                    float g, float r_acc, float *ws, mca_update_report_t *rep)
+{
+    if (att == NULL || f == NULL || acc_n == NULL || q_d == NULL || ws == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (!mca_all_finite(f, 3u) || !mca_all_finite(acc_n, 3u) || !mca_all_finite(q_d, 4u) || !isfinite(g) ||
+        !isfinite(r_acc)) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (!(g > 0.0f) || r_acc < 0.0f) {
+        return MCA_ERR_BAD_ARG;
+    }
+    float nu[2], e_rows[6], r;
+    const mca_status_t sm = gravity_measure(att, f, acc_n, q_d, g, r_acc, nu, e_rows, &r);
+    if (sm != MCA_OK) {
+        return sm;
+    }
     return euler_update(att, e_rows, 2u, nu, r, q_d, 1, 1, ws, rep);
 }
 
@@ -287,13 +301,11 @@ mca_status_t mca_att_mag_heading(const mca_att_t *att, const float m[3], float d
     if (!(m[0] * m[0] + m[1] * m[1] + m[2] * m[2] > 0.0f)) {
         return MCA_ERR_BAD_ARG;
     }
-    float eul[3], ql[4], c[9];
+    float eul[3], ql[4], ml[3];
     mca_quat_to_euler(eul, att->q_nb);
     eul[2] = 0.0f;
     mca_quat_from_euler(ql, eul);
-    mca_quat_to_dcm(c, ql);
-    const float mx = c[0] * m[0] + c[1] * m[1] + c[2] * m[2];
-    const float my = c[3] * m[0] + c[4] * m[1] + c[5] * m[2];
-    *psi_m = mca_wrap_pi(mca_atan2f(-my, mx) + decl);
+    mca_quat_rotate(ml, ql, m); /* the field levelled: C_nb(roll, pitch, 0) m */
+    *psi_m = mca_wrap_pi(mca_atan2f(-ml[1], ml[0]) + decl);
     return MCA_OK;
 }

@@ -219,7 +219,7 @@ mca_status_t mca_ins_imu_delta(mca_ins_t *ins, uint64_t t_us, const float dtheta
  * ground sets it here), or the position/velocity update in the configured robust mode against
  * the INS solution at the fix's validity time. Cost: the history search (<= 51 points), two
  * geodetic conversions, one mca_kf_update (n = 15, m <= 6), the correction of the state and of
- * the 50 history entries: ~49k instructions on the Cortex-M4F (-Os, m = 6; 44k at -O2).
+ * the 50 history entries: ~33k instructions on the Cortex-M4F (-Os, m = 6; 32k at -O2).
  * @return MCA_ERR_NULL; MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE,
  *         MCA_ERR_TIME_BACKWARDS: nothing changed; MCA_ERR_SINGULAR / MCA_ERR_NONFINITE from the
  *         update: not applied, nothing changed but n_gps_rej; else MCA_OK (also for a fix skipped before

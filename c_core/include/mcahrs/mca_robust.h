@@ -126,22 +126,28 @@ float mca_chi2_quantile(size_t m, mca_chi2_level_t level);
 size_t mca_kf_ws_len(size_t n, size_t m);
 
 /**
- * Kalman measurement update with Joseph-form covariance (docs/ALGORITHMS.md section 1) in
+ * Kalman measurement update, Joseph-form covariance (docs/ALGORITHMS.md section 1) in
  * the robust/adaptive mode rc->mode (section 5): plain, FTA, AKF, fuzzy, IGG-III.
  *
- * Cost, every mode: O(n^2 m + n m^2 + m^3) flops. The products with H (nu, P H^T, H P H^T)
- * run over H's non-zero entries only (nz of them: nz (n + 2 m) + O(m n) multiply-adds; a
- * zero entry costs a compare), the gain n Cholesky solves of size m (m divisions), the
- * expanded Joseph step n^2 m + 2 n m^2 multiply-adds (upper triangle, mirrored), the finite
- * checks of the inputs and of x+, P+ two float operations per value. On the Cortex-M4F (-Os) a
- * CS axis update (n = 5, m <= 2) is ~3.8k instructions (mca_cs3_update mean / 3,
- * scripts/fw_report.py): ~1k of argument checks and set-up, the rest gain and Joseph.
- * On top of that,
- * FTA and fuzzy inflation, AKF on detection and IGG-III with a down-weighted row re-factor
- * the m x m gain covariance (m^3 / 6 and m sqrtf); AKF adds O(m n + MCA_AKF_WINDOW) and one
- * log2 (the core's own, ~15 flops, no libm); IGG-III adds m^2 sqrtf; fuzzy O(1). Stack:
- * scalars and pointers only, no arrays (296 bytes in the Cortex-M4F firmware build, 368 with
- * mca_cholesky under it).
+ * Two paths (docs/ALGORITHMS.md 1, "Sequential form"), the same update in exact arithmetic:
+ * - Row by row, when R (with the mode's increments) is diagonal and the gain is not inflated
+ *   (every mode but FTA / fuzzy inflation on a detection): each kept row is a scalar update,
+ *   u = P h^T, s = h u + r, k = u / s, x += k nu, P -= k u^T on the upper triangle (for this
+ *   gain Joseph's form gives the same matrix), T = sum nu_i^2 / s_i. Cost per row: nz n
+ *   multiply-adds for u (nz the row's non-zero entries), n(n+1)/2 for P, one division; P is
+ *   read as the symmetric matrix its upper triangle gives, and written whole. In plain mode
+ *   without a report nothing else runs: no m x m matrix is formed or factored.
+ * - Joint, otherwise: nu, P H^T, C = H P H^T + R over H's non-zero entries, C's Cholesky
+ *   factor, the gain by n solves of size m, expanded Joseph P + A K^T + K A^T (n^2 m + 2 n m^2
+ *   multiply-adds).
+ * Robust modes and a report form nu and C first (O(nz (n + m))), factor C (m^3 / 6, m sqrtf)
+ * for T; AKF adds O(m n + MCA_AKF_WINDOW) and one log2 (the core's own, ~15 flops, no libm);
+ * IGG-III m^2 sqrtf; fuzzy O(1). A test innovation adds one m x m factor and solve. On the
+ * Cortex-M4F (-Os, scripts/fw_report.py) a plain CS axis update (n = 5, m <= 2) is ~2.8k
+ * instructions (mca_cs3_update mean / 3), the roll/pitch update
+ * (n = 6, m = 2) ~2k; scripts/fw_profile.py splits them by function. Stack: scalars and pointers
+ * only, no arrays (80 bytes for the checks, then 264 for the general path or 88 + 80 for the
+ * row path, in the Cortex-M4F firmware build).
  * Touches only its arguments: x, p, rs (AKF and fuzzy only) and rep are written, ws is
  * scratch, everything else is read only.
  *
@@ -152,7 +158,8 @@ size_t mca_kf_ws_len(size_t n, size_t m);
  * detector's memory still advances.
  *
  * @param[in,out] x      state, n values (finite)
- * @param[in,out] p      covariance, n x n, symmetric (finite)
+ * @param[in,out] p      covariance, n x n, symmetric (finite; the row path reads its upper
+ *                       triangle only and writes P+ whole)
  * @param[in]     n      state size, >= 1
  * @param[in]     h      measurement matrix, m x n (finite)
  * @param[in]     z      measurement, m values
