@@ -265,12 +265,16 @@ def test_bench_survives_socket_server_vanishing_and_keeps_filter_state(
     def server() -> None:
         try:
             conn, _ = srv.accept()
+            # pyserial's socket open() ends with reset_input_buffer(), which drops what has arrived
+            # by then; the bench cannot tell us it is open, so the server waits a moment
+            time.sleep(0.3)
             _paced_write(conn.sendall, data[:cut], duration, speed=10.0)
             conn.close()
             srv.close()  # the port vanishes
             time.sleep(0.6)
             srv2 = socket.create_server(("127.0.0.1", port))  # and comes back
             conn2, _ = srv2.accept()
+            time.sleep(0.3)  # as above, for the reconnection's open()
             _paced_write(conn2.sendall, data[resume:], duration, speed=10.0)
             assert done.wait(WAIT_S)
             conn2.close()
