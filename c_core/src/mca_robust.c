@@ -629,9 +629,9 @@ static int r_diagonal(const float *r, size_t m)
  * upper triangle gives (the lower one is not read, and is written as the mirror). keep: bit i
  * set, row i is applied; d: the R increments (NULL: none). Works in ws (general layout: pn, then
  * u, k in the kk, a blocks, xn in its own) and writes x, p only when every row's s is positive
- * and the result is finite. t_rows: the sum of the rows' nu_i^2 / s_i, which is T = nu^T C^-1 nu (the
- * s_i are the squared pivots of C's Cholesky factor, nu_i / sqrt(s_i) its forward substitution
- * of nu). */
+ * and the result is finite. t_rows: the sum of the rows' nu_i^2 / s_i, which is
+ * T = nu^T C^-1 nu (the s_i are the squared pivots of C's Cholesky factor, nu_i / sqrt(s_i)
+ * its forward substitution of nu). */
 MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const float *h, const float *z,
                                             const float *r, size_t m, unsigned keep, const float *d, float *ws,
                                             float *t_rows)
@@ -805,8 +805,9 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
             return MCA_ERR_BAD_ARG;
         }
     }
-    /* x and P are checked where they are read in full: in the row-by-row update's copies, else
-     * before the joint update, a rejection, or a SINGULAR status (which a non-finite P causes) */
+    /* x and P are checked through the row-by-row update's result (every entry of x and of P's
+     * upper triangle reaches it), else before the joint update, a rejection, or a SINGULAR
+     * status (which a non-finite P causes) */
     if (!mca_all_finite(z, m) || !mca_all_finite(r, m * m) || !mca_all_finite(h, m * n) ||
         (tested && (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m)))) {
         return MCA_ERR_NONFINITE;
@@ -840,7 +841,6 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     float *y = xn + n;
     float *ct = y + m;
     float *lt = ct + m * m;
-
 
     /* nu = z - H x -> y; C = H P H^T + R (ALGORITHMS.md 1, step 1) */
     h_times_vec(y, h, x, m, n);
@@ -953,7 +953,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
         }
     }
     if (!pl.rejected && !(pl.gamma > 1.0f) && r_diagonal(r, m)) {
-        /* an unscaled gain with a diagonal R_eff: row by row (checks x and P as it copies them) */
+        /* an unscaled gain with a diagonal R_eff: row by row (its result check covers x and P) */
         float t_rows;
         const mca_status_t st = apply_rows(x, p, n, h, z, r, m, pl.keep, pl.use_d ? t : NULL, ws, &t_rows);
         if (st != MCA_OK) {
