@@ -603,12 +603,14 @@ static int state_finite(const float *x, const float *p, size_t n)
     return mca_all_finite(x, n) && mca_all_finite(p, n * n);
 }
 
-/* 1 when R (m x m) has no non-zero entry off its diagonal. */
+/* 1 when every entry of R (m x m) off its diagonal is +-0 (a NaN there is not: such an R goes
+ * to the general path, whose input check reports it). */
 static int r_diagonal(const float *r, size_t m)
 {
     for (size_t i = 1; i < m; ++i) {
         for (size_t j = 0; j < i; ++j) {
-            if (nonzero(r[i * m + j]) || nonzero(r[j * m + i])) {
+            const float a = r[i * m + j], b = r[j * m + i];
+            if (!(a >= 0.0f && a <= 0.0f && b >= 0.0f && b <= 0.0f)) {
                 return 0;
             }
         }
@@ -671,8 +673,11 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
         for (size_t l = 0; l < n; ++l) {
             s += hr[l] * u[l];
         }
-        if (!(s > 0.0f)) { /* not positive: SINGULAR; NaN (from a non-finite P): NONFINITE */
+        if (!(s > 0.0f)) { /* not positive: SINGULAR; NaN (from a non-finite input): NONFINITE */
             return s <= 0.0f ? MCA_ERR_SINGULAR : MCA_ERR_NONFINITE;
+        }
+        if (!(s <= 3.4028235e38f)) {
+            return MCA_ERR_NONFINITE; /* an infinite R_ii or P H^T */
         }
         const float inv = 1.0f / s, nu = z[row] - hx;
         t_sum += nu * (nu * inv);
@@ -805,17 +810,21 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
             return MCA_ERR_BAD_ARG;
         }
     }
-    /* x and P are checked through the row-by-row update's result (every entry of x and of P's
-     * upper triangle reaches it), else before the joint update, a rejection, or a SINGULAR
-     * status (which a non-finite P causes) */
-    if (!mca_all_finite(z, m) || !mca_all_finite(r, m * m) || !mca_all_finite(h, m * n) ||
-        (tested && (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m)))) {
+    if (tested && (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m))) {
         return MCA_ERR_NONFINITE;
     }
     /* Plain mode with a diagonal R needs neither nu nor C before the update: the rows give T.
-     * They are formed only for a report (the general path). */
+     * They are formed only for a report (the general path). The row-by-row update checks its
+     * inputs through what it computes: every entry of H and of R's diagonal reaches its row's s
+     * (checked finite and positive), every entry of x, z and P's upper triangle reaches x+ or P+
+     * (checked finite before anything is written), so a non-finite input is NONFINITE there too. */
     if (mode == MCA_ROBUST_PLAIN && rep == NULL && r_diagonal(r, m)) {
         return update_plain_rows(x, p, n, h, z, r, m, rs, nu_t, c_t, ws);
+    }
+    /* the general path checks z, R and H here; x and P before the joint update, a rejection,
+     * or a SINGULAR status (which a non-finite P causes), else through the row-by-row result */
+    if (!mca_all_finite(z, m) || !mca_all_finite(r, m * m) || !mca_all_finite(h, m * n)) {
+        return MCA_ERR_NONFINITE;
     }
     return update_general(x, p, n, h, z, r, m, rc, rs, nu_t, c_t, ws, rep);
 }

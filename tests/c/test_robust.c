@@ -481,6 +481,21 @@ static void test_bad_input_leaves_state_in_every_mode(void)
         memcpy(&rs1, &rs, sizeof(rs));
         CHECK_EQ_INT(mca_kf_update(xb, p, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NONFINITE);
         CHECK_EQ_INT(mca_kf_update(x, pb, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_NONFINITE);
+        /* and without a report (plain mode: the row-by-row path, which checks through its result) */
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, znan, r, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_ERR_NONFINITE);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, rnan, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_ERR_NONFINITE);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, hnan, z, r, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_ERR_NONFINITE);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, rsing, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_ERR_SINGULAR);
+        CHECK_EQ_INT(mca_kf_update(xb, p, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_ERR_NONFINITE);
+        CHECK_EQ_INT(mca_kf_update(x, pb, N, h, z, r, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_ERR_NONFINITE);
+        {
+            const float r_offnan[M * M] = {1.0f, NAN, NAN, 1.0f};
+            const float h_inf[M * N] = {INFINITY, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f};
+            CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r_offnan, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_ERR_NONFINITE);
+            CHECK_EQ_INT(mca_kf_update(x, p, N, h_inf, z, r, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_ERR_NONFINITE);
+            const float z_inf[M] = {INFINITY, 0.0f};
+            CHECK_EQ_INT(mca_kf_update(x, p, N, h, z_inf, r, M, &rc, &rs, g_ws, WS_MAX, NULL), MCA_ERR_NONFINITE);
+        }
         /* bad configuration */
         mca_robust_config_t bad = rc;
         bad.mode = 5u;
