@@ -360,6 +360,20 @@ static void plan_igg(mca_plan_t *pl, const mca_robust_config_t *rc, size_t m, co
     }
 }
 
+/* ---------------------------------------------------------------- scratch layout
+ *
+ * The update's scratch (MCA_KF_WS_LEN(n, m) floats), block by block: pn (n x n): P+ being
+ * built; kk (n x m): P H^T, then K in place (the row path: u); a (n x m): U = P H^T for the
+ * Joseph step (the row path: k); b (n x m): K S; t (n x m): C^-1 nu, then the per-row R
+ * increments d (m); c, l (m x m): C and its factor; xn (n): x+; y (m): nu; ct, lt (m x m): the
+ * test covariance (IGG-III re-weights it) and its factor. Every m-vector fits in t (n >= 1).
+ * update_general and apply carve it block after block; the row path reaches its blocks by
+ * these offsets (floats from the start): */
+#define WS_XN(n, m) ((n) * (n) + 4u * (n) * (m) + 2u * (m) * (m))
+#define WS_Y(n, m) (WS_XN(n, m) + (n))
+#define WS_CT(n, m) (WS_Y(n, m) + (m))
+#define WS_LT(n, m) (WS_CT(n, m) + (m) * (m))
+
 /* ---------------------------------------------------------------- products with H
  *
  * The measurement rows are sparse (a CS row has two ones in five columns, the roll/pitch
@@ -482,7 +496,7 @@ static int refactor_needed(const mca_plan_t *pl, size_t m)
 static mca_status_t apply(float *x, float *p, size_t n, const float *h, const float *r, size_t m,
                           const mca_plan_t *pl, float *ws, int refactor, int c_has_d)
 {
-    /* the scratch layout of mca_kf_update_tested */
+    /* the scratch blocks (layout above) */
     float *pn = ws;
     float *kk = pn + n * n;
     float *a = kk + n * m;
@@ -641,7 +655,7 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
     float *pn = ws;
     float *u = pn + n * n;
     float *k = u + n * m;
-    float *xn = k + 3u * n * m + 2u * m * m;
+    float *xn = ws + WS_XN(n, m);
     /* The first row reads x and P and writes xn, pn; the later ones work in place there. Every
      * entry of x and of P's upper triangle reaches x+ and P+ through a sum, so the final check
      * also catches a non-finite input. */
@@ -739,10 +753,10 @@ MCA_NOINLINE static mca_status_t update_plain_rows(float *x, float *p, size_t n,
                                                    const float *r, size_t m, mca_robust_state_t *rs,
                                                    const float *nu_t, const float *c_t, float *ws)
 {
-    float *ct = ws + n * n + 4u * n * m + 2u * m * m + n + m;
+    float *ct = ws + WS_CT(n, m);
     float t_stat = 0.0f;
     if (nu_t != NULL) {
-        const mca_status_t s = test_stat(nu_t, c_t, ct, ct + m * m, ct - m, m, &t_stat);
+        const mca_status_t s = test_stat(nu_t, c_t, ct, ws + WS_LT(n, m), ws + WS_Y(n, m), m, &t_stat);
         if (s != MCA_OK) {
             return s;
         }
@@ -835,10 +849,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
 {
     const int tested = nu_t != NULL;
     const mca_robust_mode_t mode = rc != NULL ? (mca_robust_mode_t)rc->mode : MCA_ROBUST_PLAIN;
-    /* Scratch layout (MCA_KF_WS_LEN(n, m) floats): pn (n x n); kk (n x m): P H^T, then K in
-     * place; a (n x m): U = P H^T for the Joseph step; b (n x m): K S; t (n x m): C^-1 nu,
-     * then the per-row R increments d (m); c, l (m x m); xn (n); y (m); ct, lt (m x m): the
-     * test covariance (IGG-III re-weights it) and its factor. Every m-vector fits in t (n >= 1). */
+    /* the scratch blocks (layout above) */
     float *pn = ws;
     float *kk = pn + n * n;
     float *a = kk + n * m;
