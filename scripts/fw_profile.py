@@ -11,14 +11,15 @@ translation block is credited with its guest instruction count to the function t
 address (``arm-none-eabi-nm``). Only blocks executed inside a call of ``--entry`` are counted:
 from its first instruction until a block of the function it was called from runs again. The
 entry may be any function of the image, static ones included (``--entry gps_cs``: the CS part of
-the GPS step), if it is not recursive. So it
-prints where the entry point's instructions go, per call, self and by function, the way
-callgrind does on the host but with the target's own code (-Os Thumb-2, FPv4). ``--lines F``
-splits function F's own instructions by source line; that needs a build with line tables
-(configure a copy with ``CFLAGS=-g``, which changes no instruction, and pass ``--build``).
+the GPS step), if it is not recursive. It prints where the entry's instructions go, per call and
+by function (each function's own instructions), the way callgrind does on the host, but with the
+target's code (-Os Thumb-2, FPv4). ``--lines F`` splits function F's own instructions by source
+line; that needs a build with line tables (configure a copy with ``CFLAGS=-g``, which changes no
+instruction, and pass ``--build``).
 
-It reports; it asserts nothing. The totals agree with fw_report.py's SysTick counts per call to
-within the measurement's own overhead (the call and its argument set-up are outside here).
+It reports; it asserts nothing. Its per-call totals are comparable with fw_report.py's SysTick
+counts, which also include the call and its argument set-up; both count every executed
+instruction (QEMU ``-icount``), a block cut short by an I/O access is credited whole here.
 """
 
 from __future__ import annotations
