@@ -9,7 +9,9 @@ filter (``core.replay``) in every mode: 0 plain, 1 FTA, 2 AKF, 3 fuzzy, 4 IGG-II
 three CS axes (``cs_h``, ``cs_v``) and on the attitude filter (``att``; ``--cs-only`` leaves the
 attitude filter plain). The CS updates' robust decisions test the GPS against the IMU-aided
 prediction (ALGORITHMS.md 8, GPS step 3, the default ``gps_test_imu = 1``); ``--own-test`` runs
-them on the CS filter's own constant-acceleration prediction instead, for comparison.
+them on the CS filter's own constant-acceleration prediction instead, for comparison. A fix the
+CS robust mode flags feeds no attitude observation (ALGORITHMS.md 8, GPS step 6), so the roll/pitch
+figures measure the detector as much as the attitude filter's own robust mode.
 
 Faults (horizontal, random azimuth; lat/lon moved with the exact geodetic conversion,
 ``pymap3d.ned2geodetic``; velocity added to ``vel_ned_mps``), nothing in the first 60 s:

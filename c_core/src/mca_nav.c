@@ -586,6 +586,23 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     return st;
 }
 
+/* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
+ * step 6): the mode's detection (rs.detected); IGG-III, which weighs rows, when the update
+ * removed the velocity row or every row. Plain mode never flags. */
+static int fix_flagged(const mca_nav_t *nav, uint8_t vmask)
+{
+    for (size_t i = 0; i < 2u; ++i) {
+        const mca_cs_axis_t *ax = &nav->cs.axis[i];
+        const int flagged = ax->cfg.robust.mode == (uint8_t)MCA_ROBUST_IGG3
+                                ? ax->rs.n_reject > 0u || ((vmask & 3u) == 3u && ax->rs.n_removed[1] > 0u)
+                                : ax->rs.detected != 0u;
+        if (flagged) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* GPS steps 5-6 after the CS updates: the compensation acceleration, the roll/pitch
  * observation and the course-over-ground yaw observation (failures are counted skips or
  * gates, not errors). */
@@ -597,6 +614,11 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
     const float g2 = nav->g_mps2 * nav->g_mps2;
     float acc[3] = {0.0f, 0.0f, 0.0f};
     float r_acc = 0.0f;
+    const int flagged = fix_flagged(nav, vmask);
+    if (flagged) { /* the CS acceleration carries a fault it let in for about tau_a (GPS step 6) */
+        nav->t_flag_end_us = fix->t_us + us(nav->cfg.cs_h.tau_a_s);
+    }
+    const int excluded = fix->t_us < nav->t_flag_end_us;
     int observe = nav->aligned;
     const mca_hist_entry_t *e = NULL;
     if (nav->cfg.comp_mode == MCA_COMP_CS) {
@@ -629,11 +651,13 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
         /* a yaw error turns the horizontal compensation (ALGORITHMS.md 8, GPS step 5) */
         r_acc += (acc[0] * acc[0] + acc[1] * acc[1]) * nav->att.p[14] / g2;
     }
-    if (observe) {
+    if (observe && excluded) {
+        gravity_skip(nav);
+    } else if (observe) {
         (void)gravity_obs(nav, e, NULL, acc, r_acc); /* failures are counted skips */
     }
     /* the course observation does not depend on the roll/pitch attempt (GPS step 6) */
-    if (nav->aligned) {
+    if (nav->aligned && !flagged) {
         const float speed = sqrtf(vel[0] * vel[0] + vel[1] * vel[1]);
         if (nav->cfg.yaw_source == MCA_YAW_COG && (vmask & 3u) == 3u && speed >= nav->cfg.cog_min_speed_mps &&
             speed > 0.0f) {

@@ -766,6 +766,7 @@ MCA_NOINLINE static mca_status_t update_plain_rows(float *x, float *p, size_t n,
             rs->n_removed[i] = 0u;
         }
         rs->t_stat = t_stat;
+        rs->detected = 0u;
     }
     return MCA_OK;
 }
@@ -1010,6 +1011,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     }
     if (rs != NULL) {
         rs->t_stat = t_stat;
+        rs->detected = pl.detected;
     }
     if (rep != NULL) {
         rep->reset = reset ? 1u : 0u;

@@ -344,3 +344,72 @@ def test_imu_aided_gps_test_flags_velocity_spikes_not_maneuvers(name: str, prese
     assert rates[1][0] >= 0.98, "aided test misses velocity spikes"
     assert rates[1][1] <= 0.015, "aided test flags clean fixes well above its level"
     assert rates[1][1] <= rates[0][1] / 3.0, "aided test does not cut the maneuver false alarms 3x"
+
+
+def test_a_fix_the_cs_robust_mode_flags_feeds_no_attitude_observation() -> None:
+    """ALGORITHMS.md 8, GPS step 6: a fix whose N or E robust update flagged it gives no
+    course-over-ground observation, and no roll/pitch observation is made from it or from any fix
+    less than tau_a after it (counted as skipped). 5 m/s velocity spikes every 10 s on a
+    fixed-wing flight (course-over-ground yaw): FTA flags them (T far above chi2_2(1e-4)); plain
+    mode, which flags nothing, observes at the same fixes."""
+    import dataclasses
+
+    from mcahrs.golden.robust import chi2_quantile
+
+    res = scenario("fixedwing_turns", seed=3, duration_s=150.0)
+    rec = res.recording
+    g = rec.gnss.copy()
+    t_s = g["t_us"] * 1e-6
+    spikes = [int(np.argmin(np.abs(t_s - t))) for t in np.arange(70.0, 141.0, 10.0)]
+    v = g["vel_ned_mps"].copy()
+    v[spikes, 0] += 5.0 * math.cos(0.7)
+    v[spikes, 1] += 5.0 * math.sin(0.7)
+    g["vel_ned_mps"] = v
+    bad = dataclasses.replace(rec, gnss=g)
+    fta = {"robust": {"mode": 1}}
+    cfg_fta = core.nav_config("fixedwing", cs_h=fta, cs_v=fta)
+    cfg_plain = core.nav_config("fixedwing")
+    tau_us = round(cfg_fta.cs_h.tau_a_s * 1e6)
+
+    def deltas(out: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t_out = out["t_us"].astype(np.int64)
+        rows = np.searchsorted(t_out, g["t_rx_us"], side="right")  # first row after each fix
+        obs = out["n_grav_obs"].astype(np.int64)
+        skip = out["n_grav_skip"].astype(np.int64)
+        return obs[rows] - obs[rows - 1], skip[rows] - skip[rows - 1], out["gps_t"][rows]
+
+    d_obs, d_skip, T = deltas(core.replay(bad, cfg_fta))
+    p_obs, _, _ = deltas(core.replay(bad, cfg_plain))
+    thr = chi2_quantile(1e-4, 2)
+    held = after = 0
+    for k in spikes:
+        assert max(T[k, 0], T[k, 1]) > thr, f"the spike at {t_s[k]:.1f} s is not flagged"
+        assert p_obs[k] == 1, "plain mode must observe at the spike fix (the comparison)"
+        window = np.flatnonzero((g["t_us"] >= g["t_us"][k]) & (g["t_us"] < g["t_us"][k] + tau_us))
+        flagged_later = [j for j in window if max(T[j, 0], T[j, 1]) > thr]
+        assert flagged_later == [k], "only the spike is flagged in its window"
+        assert np.all(d_obs[window] == 0) and np.all(d_skip[window] == 1), (
+            f"fixes within tau_a of the spike at {t_s[k]:.1f} s observed roll/pitch"
+        )
+        held += window.size
+        nxt = window[-1] + 1
+        after += int(d_obs[nxt] == 1)
+    assert held >= 10 * len(spikes) * 0.9  # tau_a = 2 s at 5 Hz: the spike and 9 fixes after it
+    assert after >= len(spikes) - 1, "observations do not resume after tau_a"
+
+    # Course over ground: the spike fix's velocity is not observed under FTA, it is in plain mode.
+    k = spikes[0]
+    t_rx = int(g["t_rx_us"][k])
+    head = dataclasses.replace(bad, imu=bad.imu[bad.imu["t_us"] <= t_rx], gnss=g[:k])
+    fx = g[k]
+    moved = {}
+    for label, cfg in (("fta", cfg_fta), ("plain", cfg_plain)):
+        nav = core.Nav(cfg)
+        nav.replay(head)
+        before = int(nav._nav.t_lastyaw_us)
+        assert before > 0
+        nav.gps(int(fx["t_us"]), int(fx["lat_e7"]), int(fx["lon_e7"]), int(fx["alt_mm"]),
+                fx["vel_ned_mps"], float(fx["h_acc_m"]), float(fx["v_acc_m"]), float(fx["s_acc_mps"]),
+                int(fx["fix_type"]))
+        moved[label] = int(nav._nav.t_lastyaw_us) != before
+    assert moved == {"fta": False, "plain": True}

@@ -429,6 +429,8 @@ def test_lock_up_guard_replaces_the_nth_rejection_by_a_plain_update(mode: str, r
         resets_g.append(rg_.reset)
         rejected_c.append(rc_["rejected"])
         assert rc_["rejected"] == rg_.rejected
+        # the memory keeps the report's detected flag for callers without a report (nav GPS step 6)
+        assert bool(st_c.as_dict()["detected"]) == bool(rc_["detected"]) == rg_.detected
         # float32 vs float64 of one plain update with a 30-sigma innovation
         np.testing.assert_allclose(xc, xg, rtol=1e-4, atol=1e-4)
     assert resets_c == resets_g

@@ -110,6 +110,7 @@ typedef struct {
     uint64_t t_lastgrav_us;  /**< last no-GPS observation */
     uint64_t t_lastmag_us;   /**< last magnetometer observation */
     uint64_t t_lastyaw_us;   /**< IMU time of the last yaw observation of any source */
+    uint64_t t_flag_end_us;  /**< last flagged fix + tau_a: no roll/pitch observation before (0: none) */
     float hist_f_sum[3];     /**< accumulator of the entry being built */
     uint32_t hist_acc_us;    /**< time accumulated in it */
     uint16_t hist_n;         /**< samples in it */
@@ -210,11 +211,13 @@ mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg);
 mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro_b_rps[3], const float accel_b_mps2[3]);
 
 /**
- * GPS step (ALGORITHMS.md 8): CS predict + update, then the gravity observation.
+ * GPS step (ALGORITHMS.md 8): CS predict + update, then the gravity observation. A fix the
+ * CS robust mode flags (GPS step 6) gives no course observation, and no roll/pitch observation
+ * is made from it or for tau_a after it (counted as skipped).
  * Cost on the Cortex-M4F (-Os, scripts/fw_report.py): 15.6k instructions mean, 19.0k max
  * (15.0k mean at -O2): about two thirds the CS predict with the IMU-aided test prior and the
  * three axis updates, a fifth the roll/pitch update, the rest the course update, geodesy and
- * history look-ups (scripts/fw_profile.py); stack 920 B worst case (the steps keep no update
+ * history look-ups (scripts/fw_profile.py); stack 936 B worst case (the steps keep no update
  * report on the stack).
  * @return MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE,
  *         MCA_ERR_TIME_BACKWARDS (all unchanged), CS update errors, else MCA_OK.

@@ -62,6 +62,8 @@ typedef struct {
     uint8_t alarm;                 /**< fuzzy: alarm raised */
     uint8_t started;               /**< AKF: row statistics initialised */
     uint8_t n_reject;              /**< rejected updates in a row (lock-up guard) */
+    uint8_t detected;              /**< the last successful update's detected flag (the report's),
+                                        for callers that pass no report; read by no mode */
     uint8_t n_removed[MCA_MEAS_MAX]; /**< per row index: updates in a row that removed it (IGG-III
                                           weight 0; row lock-up guard) */
 } mca_robust_state_t;

@@ -64,7 +64,8 @@ tests/python/test_nav_golden_vs_c.py)
     ``cog_min_speed``) does not align. Once per filter (``reset`` re-arms it).
 13. The robust update modes (ALGORITHMS.md 5) are not modelled here: every navigation update
     is the plain section-1 update. The IMU-aided test of the CS updates (GPS step 3) is: it
-    decides nothing in plain mode, but its T is the reported ``gps_T``.
+    decides nothing in plain mode, but its T is the reported ``gps_T``. Nor is GPS step 6's
+    exclusion of flagged fixes: plain mode flags none.
 14. IMU increments (GPS step 3): ring entries as consecutive (previous end, end] intervals, the
     oldest one only as the start of the next; the interval's end past the newest entry holds the
     newest entry's acceleration for at most ``MCA_HIST_DT_US``; any saturated entry that overlaps
