@@ -70,7 +70,7 @@ MCA_COLD mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t 
         return MCA_ERR_NONFINITE;
     }
     memset(ax, 0, sizeof(*ax));
-    ax->cfg = *cfg;
+    mca_copy_bytes(&ax->cfg, cfg, sizeof(ax->cfg));
     ax->x[0] = p0_m;
     ax->x[1] = v0_mps;
     ax->p[0] = cfg->p0_var_m2;

@@ -66,6 +66,22 @@ void mca_mat_symmetrize(float *a, size_t n)
     }
 }
 
+void mca_copyf(float *dst, const float *src, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        dst[i] = src[i];
+    }
+}
+
+void mca_copy_bytes(void *dst, const void *src, size_t n)
+{
+    unsigned char *d = (unsigned char *)dst;
+    const unsigned char *s = (const unsigned char *)src;
+    for (size_t i = 0; i < n; ++i) {
+        d[i] = s[i];
+    }
+}
+
 mca_status_t mca_cholesky(float *l, const float *a, size_t n)
 {
     /* Column by column; row j's upper part is zeroed with column j's lower part, so no

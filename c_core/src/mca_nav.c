@@ -125,7 +125,7 @@ MCA_COLD mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg)
         return st;
     }
     memset(nav, 0, sizeof(*nav));
-    nav->cfg = *cfg;
+    mca_copy_bytes(&nav->cfg, cfg, sizeof(nav->cfg));
     nav->g_mps2 = cfg->gravity_mps2 > 0.0f ? cfg->gravity_mps2 : G0;
     nav->att.q_nb[0] = 1.0f;
     nav->last_rp_t = NAN; /* not set yet */

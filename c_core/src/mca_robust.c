@@ -473,7 +473,7 @@ static void solve_rows(const float *l, float *kk, size_t n, size_t m)
 /* nu^T C^-1 nu from the Cholesky factor l of C; t (m) is scratch. */
 static float nis(const float *l, const float *nu, float *t, size_t m)
 {
-    memcpy(t, nu, m * sizeof(float));
+    mca_copyf(t, nu, m);
     mca_cholesky_solve(l, t, m);
     float s = 0.0f;
     for (size_t i = 0; i < m; ++i) {
@@ -534,7 +534,7 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
     }
     /* U = P H^T kept in a (n x m) for the Joseph step below */
     float *u = a;
-    memcpy(u, kk, n * m * sizeof(float));
+    mca_copyf(u, kk, n * m);
     /* K = P H^T C_eff^-1, row by row in place: C_eff k_i = (P H^T)_i over the kept columns */
     if (mk == m) {
         solve_rows(l, kk, n, m);
@@ -553,7 +553,7 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
         }
     }
     /* R_eff into c (C and its compaction are no longer needed; d is read before t is reused) */
-    memcpy(c, r, m * m * sizeof(float));
+    mca_copyf(c, r, m * m);
     if (pl->use_d) {
         for (size_t i = 0; i < m; ++i) {
             c[i * m + i] += d[i];
@@ -597,8 +597,8 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
     if (!mca_all_finite(xn, n) || !isfinite(fin)) {
         return MCA_ERR_NONFINITE;
     }
-    memcpy(x, xn, n * sizeof(float));
-    memcpy(p, pn, n * n * sizeof(float));
+    mca_copyf(x, xn, n);
+    mca_copyf(p, pn, n * n);
     return MCA_OK;
 }
 
@@ -874,8 +874,8 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
         for (size_t i = 0; i < m; ++i) {
             rep->w[i] = 1.0f;
         }
-        memcpy(rep->nu, y, m * sizeof(float));
-        memcpy(rep->c, c, m * m * sizeof(float));
+        mca_copyf(rep->nu, y, m);
+        mca_copyf(rep->c, c, m * m);
     }
     /* step 2: C positive definite */
     if (mca_cholesky(l, c, m) != MCA_OK) {

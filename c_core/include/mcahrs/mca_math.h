@@ -36,6 +36,15 @@ int mca_finite(float x);
 /** 1 when all n values are finite. Cost: 2n float operations and one compare (~4n instructions on the M4F). */
 int mca_all_finite(const float *v, size_t n);
 
+/**
+ * dst[0..n) = src[0..n), not overlapping. The core's copies use these two loops, not libc's
+ * memcpy: newlib-nano's is 308 B of flash on the Cortex-M4F (speed-unrolled), a loop ~20 B.
+ * Cost: mca_copyf ~3n instructions; mca_copy_bytes ~4 a byte (cold paths: configuration copies).
+ */
+void mca_copyf(float *dst, const float *src, size_t n);
+/** Byte copy of n bytes, not overlapping (struct copies). */
+void mca_copy_bytes(void *dst, const void *src, size_t n);
+
 /** c (r x k) = a (r x n) * b (n x k). c must not alias a or b. */
 void mca_mat_mul(float *c, const float *a, const float *b, size_t r, size_t n, size_t k);
 
