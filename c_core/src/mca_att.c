@@ -151,14 +151,23 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
     /* Rows at the current attitude: h_k = e_k C_D with C_D = C_nb(q_d)^T C_nb(q) = C(q_d^-1 (x) q)
      * (current body to body at t_d), i.e. h_k^T = C_D^T e_k^T, the rotation of e_k by
      * (q_d^-1 (x) q)^-1 = q^-1 (x) q_d: no 3 x 3 matrix. */
-    float h[2u * MCA_ATT_NX] = {0}, dx[MCA_ATT_NX] = {0}, rm[4] = {0};
+    float h[2u * MCA_ATT_NX], dx[MCA_ATT_NX], rm[4];
     const float *q = att->q_nb;
     const float q_inv[4] = {q[0], -q[1], -q[2], -q[3]};
     float q_back[4];
     mca_quat_mul(q_back, q_inv, q_d);
+    /* every entry written (no memset calls): the rows see no gyro bias, R is r I */
     for (size_t k = 0; k < m; ++k) {
         mca_quat_rotate(&h[k * MCA_ATT_NX], q_back, &e_rows[k * 3u]);
-        rm[k * m + k] = r;
+        for (size_t j = 3u; j < MCA_ATT_NX; ++j) {
+            h[k * MCA_ATT_NX + j] = 0.0f;
+        }
+        for (size_t j = 0; j < m; ++j) {
+            rm[k * m + j] = j == k ? r : 0.0f;
+        }
+    }
+    for (size_t i = 0; i < MCA_ATT_NX; ++i) {
+        dx[i] = 0.0f;
     }
     /* the _tested entry with no test directly: mca_kf_update is a wrapper frame on this path */
     const mca_status_t st = mca_kf_update_tested(dx, att->p, MCA_ATT_NX, h, nu, rm, m,

@@ -155,15 +155,15 @@ void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
     q33[8] = q33v;
 }
 
-void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[25], float q[25])
+/* mca_cs_transition's entries that can be non-zero (A3 of Phi, its diagonal, Q's 3 x 3 block and
+ * Q44, Q55); the others are left as they are. The predicts read no other entry. */
+static void transition_nz(const mca_cs_config_t *cfg, float t, float s2, float phi[25], float q[25])
 {
     const float alpha = 1.0f / cfg->tau_a_s;
     const float beta = 1.0f / cfg->tau_p_s;
     const float gamma = 1.0f / cfg->tau_v_s;
     const float x = alpha * t;
     const float em1 = mca_expm1f(-x); /* e - 1 */
-    memset(phi, 0, 25u * sizeof(float));
-    memset(q, 0, 25u * sizeof(float));
     phi[0] = 1.0f;
     phi[1] = t;
     /* Phi13 = (alpha T - 1 + e)/alpha^2 = T^2 (x - 1 + e)/x^2 */
@@ -184,6 +184,13 @@ void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[
     const float sp2 = cfg->sigma_p_m * cfg->sigma_p_m, sv2 = cfg->sigma_v_mps * cfg->sigma_v_mps;
     q[18] = -sp2 * mca_expm1f(-2.0f * beta * t);  /* sigma_p^2 (1 - exp(-2 beta T)) */
     q[24] = -sv2 * mca_expm1f(-2.0f * gamma * t); /* sigma_v^2 (1 - exp(-2 gamma T)) */
+}
+
+void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[25], float q[25])
+{
+    memset(phi, 0, 25u * sizeof(float));
+    memset(q, 0, 25u * sizeof(float));
+    transition_nz(cfg, t, s2, phi, q);
 }
 
 static int dt_ok(const mca_cs_config_t *cfg, float t)
@@ -301,7 +308,7 @@ static void axis_predict(mca_cs_axis_t *ax, float t, const mca_cs_inc_t *inc)
 {
     float phi[25], q[25];
     const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
-    mca_cs_transition(&ax->cfg, t, s2, phi, q);
+    transition_nz(&ax->cfg, t, s2, phi, q);
     axis_predict_with(ax, t, s2, phi, q, inc);
 }
 
@@ -365,19 +372,22 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
         return st;
     }
     /* rows in mask order: 0 position (p + eps_p), 1 velocity (v + eps_v) */
-    float h[MCA_CS_NZ * MCA_CS_NX] = {0};
-    float z[MCA_CS_NZ], r[MCA_CS_NZ * MCA_CS_NZ] = {0};
+    float h[MCA_CS_NZ * MCA_CS_NX];
+    float z[MCA_CS_NZ], r[MCA_CS_NZ * MCA_CS_NZ];
     size_t rows[MCA_CS_NZ], m = 0u;
     for (size_t q = 0; q < MCA_CS_NZ; ++q) {
         if ((mask & (1u << q)) != 0u) {
-            h[m * MCA_CS_NX + q] = 1.0f;
-            h[m * MCA_CS_NX + 3u + q] = 1.0f;
+            for (size_t j = 0; j < MCA_CS_NX; ++j) { /* every entry written: no memset call */
+                h[m * MCA_CS_NX + j] = (j == q || j == 3u + q) ? 1.0f : 0.0f;
+            }
             z[m] = q == 0u ? z_p : z_v;
             rows[m++] = q;
         }
     }
     for (size_t i = 0; i < m; ++i) {
-        r[i * m + i] = rows[i] == 0u ? r_p : r_v;
+        for (size_t j = 0; j < m; ++j) {
+            r[i * m + j] = i != j ? 0.0f : rows[i] == 0u ? r_p : r_v;
+        }
     }
     /* after an aided predict the mode tests z against the IMU-aided prediction, covariance s + R */
     const int aided = ax->aid.valid != 0u;
@@ -444,7 +454,7 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t, const mca_cs_inc_t *c
         mca_cs_axis_t *ax = &cs->axis[i];
         const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
         if (cfg_prev == NULL || !same_model(cfg_prev, s2_prev, &ax->cfg, s2)) {
-            mca_cs_transition(&ax->cfg, t, s2, phi, q);
+            transition_nz(&ax->cfg, t, s2, phi, q);
             cfg_prev = &ax->cfg;
             s2_prev = s2;
         }

@@ -366,7 +366,10 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
     if ((int32_t)(nav->hist[oldest].t_us - t1_32) > r0) {
         return 0;
     }
-    memset(inc, 0, 3u * sizeof(*inc));
+    for (size_t i = 0; i < 3u; ++i) { /* (acc_var is the caller's) */
+        inc[i].dp_m = 0.0f;
+        inc[i].dv_mps = 0.0f;
+    }
     float a[3];
     /* from the entry before the first one ending after t0 (k0 >= 1: the oldest ends at or before t0) */
     const uint16_t k0 = hist_lower_bound(nav, oldest, (uint32_t)t0 + 1u);
