@@ -737,6 +737,29 @@ static mca_status_t test_stat(const float *nu_t, const float *c_t, float *ct, fl
     return MCA_OK;
 }
 
+/* T of a test innovation with m <= 2 in closed form (C symmetrised, inverse by its determinant):
+ * 1 when C is positive definite with a finite determinant, 0 otherwise (the caller then takes
+ * test_stat's Cholesky path, which decides SINGULAR). A CS axis (m = 2) costs ~20 flops instead
+ * of the factor and two triangular solves. */
+static int small_test_stat(const float *nu_t, const float *c_t, size_t m, float *t_stat)
+{
+    const float a = c_t[0];
+    if (m > 2u || !(a > 0.0f)) {
+        return 0;
+    }
+    if (m == 1u) {
+        *t_stat = nu_t[0] * nu_t[0] / a;
+        return 1;
+    }
+    const float b = 0.5f * (c_t[1] + c_t[2]), d = c_t[3];
+    const float det = a * d - b * b;
+    if (!(det > 0.0f) || !(det <= 3.4028235e38f)) {
+        return 0;
+    }
+    *t_stat = (d * nu_t[0] * nu_t[0] - 2.0f * b * nu_t[0] * nu_t[1] + a * nu_t[1] * nu_t[1]) / det;
+    return 1;
+}
+
 /* Plain mode, diagonal R, no report: the rows one by one (apply_rows), T from them or from the
  * test innovation, and the memory's counters as the general path leaves them in plain mode.
  * ws in the general layout. */
@@ -746,7 +769,7 @@ MCA_NOINLINE static mca_status_t update_plain_rows(float *x, float *p, size_t n,
 {
     float *ct = ws + WS_CT(n, m);
     float t_stat = 0.0f;
-    if (nu_t != NULL) {
+    if (nu_t != NULL && !small_test_stat(nu_t, c_t, m, &t_stat)) {
         const mca_status_t s = test_stat(nu_t, c_t, ct, ws + WS_LT(n, m), ws + WS_Y(n, m), m, &t_stat);
         if (s != MCA_OK) {
             return s;

@@ -767,6 +767,67 @@ static void test_row_by_row_equals_joint_update(void)
     CHECK_CLOSE(rs2.t_stat, t_ref, 1e-5 * t_ref);
 }
 
+/* The test statistic of a plain update without a report (the navigation's CS updates): m <= 2 in
+ * closed form, larger m and indefinite C_t through the Cholesky factor. Checked against T in
+ * double, against the report path (which always factors), and SINGULAR for an indefinite C_t. */
+static void test_plain_test_statistic_small_m(void)
+{
+    enum { N = 5 };
+    const float x0[N] = {1.0f, -0.5f, 0.2f, 0.3f, 0.0f};
+    float p0[N * N] = {0};
+    for (int i = 0; i < N; ++i) {
+        p0[i * N + i] = 0.5f + 0.25f * (float)i;
+    }
+    p0[0 * N + 3] = p0[3 * N + 0] = 0.2f;
+    const float h[2 * N] = {1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f};
+    const float z[2] = {2.5f, 0.4f};
+    const float r[4] = {0.8f, 0.0f, 0.0f, 0.05f};
+    const float nu_t[2] = {1.7f, -0.9f};
+    /* C_t not exactly symmetric: the statistic uses its symmetric part */
+    const float c_t[4] = {1.3f, 0.31f, 0.29f, 0.6f};
+    for (size_t m = 1; m <= 2; ++m) {
+        double t_ref;
+        if (m == 1) {
+            t_ref = (double)nu_t[0] * (double)nu_t[0] / (double)c_t[0];
+        } else {
+            const double a = c_t[0], b = 0.5 * ((double)c_t[1] + (double)c_t[2]), d = c_t[3];
+            const double n0 = nu_t[0], n1 = nu_t[1];
+            t_ref = (d * n0 * n0 - 2.0 * b * n0 * n1 + a * n1 * n1) / (a * d - b * b);
+        }
+        const float c1[1] = {c_t[0]};
+        const float *cm = m == 1 ? c1 : c_t;
+        float r1[1] = {r[0]};
+        const float *rm = m == 1 ? r1 : r;
+        mca_robust_state_t rs;
+        mca_robust_state_init(&rs);
+        mca_update_report_t rep;
+        float x1[N], p1[N * N], x2[N], p2[N * N];
+        memcpy(x1, x0, sizeof(x1));
+        memcpy(p1, p0, sizeof(p1));
+        memcpy(x2, x0, sizeof(x2));
+        memcpy(p2, p0, sizeof(p2));
+        CHECK_EQ_INT(mca_kf_update_tested(x1, p1, N, h, z, rm, m, NULL, &rs, nu_t, cm, g_ws, WS_MAX, NULL), MCA_OK);
+        CHECK_EQ_INT(mca_kf_update_tested(x2, p2, N, h, z, rm, m, NULL, NULL, nu_t, cm, g_ws, WS_MAX, &rep), MCA_OK);
+        CHECK_CLOSE(rs.t_stat, t_ref, 4e-7 * t_ref);
+        CHECK_CLOSE(rep.t_stat, t_ref, 4e-7 * t_ref);
+        CHECK(memcmp(x1, x2, sizeof(x1)) == 0 && memcmp(p1, p2, sizeof(p1)) == 0); /* the update itself */
+    }
+    /* indefinite C_t (det < 0), and a non-positive first pivot: SINGULAR, nothing written */
+    const float c_bad[4] = {1.0f, 2.0f, 2.0f, 1.0f};
+    const float c_neg[4] = {-1.0f, 0.0f, 0.0f, 1.0f};
+    const float *bads[2] = {c_bad, c_neg};
+    for (int k = 0; k < 2; ++k) {
+        mca_robust_state_t rs;
+        mca_robust_state_init(&rs);
+        float x1[N], p1[N * N];
+        memcpy(x1, x0, sizeof(x1));
+        memcpy(p1, p0, sizeof(p1));
+        CHECK_EQ_INT(mca_kf_update_tested(x1, p1, N, h, z, r, 2, NULL, &rs, nu_t, bads[k], g_ws, WS_MAX, NULL),
+                     MCA_ERR_SINGULAR);
+        CHECK(memcmp(x1, x0, sizeof(x1)) == 0 && memcmp(p1, p0, sizeof(p1)) == 0);
+    }
+}
+
 int main(void)
 {
     test_chi2_table_matches_closed_form();
@@ -779,5 +840,6 @@ int main(void)
     test_long_run_p_stays_spd_every_mode();
     test_tested_update_decides_on_the_test_innovation();
     test_row_by_row_equals_joint_update();
+    test_plain_test_statistic_small_m();
     TEST_MAIN_END();
 }
