@@ -154,8 +154,8 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t_s, const mca_cs_inc_t 
 /**
  * Update the three axes; per-axis masks, an axis with mask 0 is skipped, all-zero is
  * MCA_ERR_BAD_MASK. Every axis is validated before any changes. rep (3 entries) may be NULL.
- * Cost: one mca_kf_update per axis with a mask, ~2.8k instructions each on the Cortex-M4F
- * (-Os, mean of the three-axis call 8.4k, max 11.3k; 7.4k mean at -O2).
+ * Cost: one mca_kf_update per axis with a mask, ~2.7k instructions each on the Cortex-M4F
+ * (-Os, mean of the three-axis call 8.2k, max 11.1k; 7.4k mean at -O2).
  * @param[out] ws MCA_CS_WS_LEN floats of scratch (shared with other filters by the caller)
  */
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos_ned_m[3], const float vel_ned_mps[3],
