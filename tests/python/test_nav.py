@@ -350,7 +350,7 @@ def test_a_fix_the_cs_robust_mode_flags_feeds_no_attitude_observation() -> None:
     """ALGORITHMS.md 8, GPS step 6: a fix whose N or E robust update flagged it gives no
     course-over-ground observation, and no roll/pitch observation is made from it or from any fix
     less than tau_a after it (counted as skipped). 5 m/s velocity spikes every 10 s on a
-    fixed-wing flight (course-over-ground yaw): FTA flags them (T far above chi2_2(1e-4)); plain
+    fixed-wing flight (course-over-ground yaw): FTA flags them (T far above chi2_2(0.01)); plain
     mode, which flags nothing, observes at the same fixes."""
     import dataclasses
 
@@ -380,22 +380,23 @@ def test_a_fix_the_cs_robust_mode_flags_feeds_no_attitude_observation() -> None:
 
     d_obs, d_skip, T = deltas(core.replay(bad, cfg_fta))
     p_obs, _, _ = deltas(core.replay(bad, cfg_plain))
-    thr = chi2_quantile(1e-4, 2)
-    held = after = 0
+    thr = chi2_quantile(1e-2, 2)  # GPS step 6 flags FTA's fixes from the 1 % level on
+    flagged = np.maximum(T[:, 0], T[:, 1]) > thr
+    t_fix = g["t_us"].astype(np.int64)
+    later = np.flatnonzero(t_s >= 60.0)  # aligned (every fix attempts an observation)
+    held = np.zeros(t_fix.size, dtype=bool)
+    for f in np.flatnonzero(flagged):
+        held |= (t_fix >= t_fix[f]) & (t_fix < t_fix[f] + tau_us)
     for k in spikes:
-        assert max(T[k, 0], T[k, 1]) > thr, f"the spike at {t_s[k]:.1f} s is not flagged"
+        assert flagged[k], f"the spike at {t_s[k]:.1f} s is not flagged"
         assert p_obs[k] == 1, "plain mode must observe at the spike fix (the comparison)"
-        window = np.flatnonzero((g["t_us"] >= g["t_us"][k]) & (g["t_us"] < g["t_us"][k] + tau_us))
-        flagged_later = [j for j in window if max(T[j, 0], T[j, 1]) > thr]
-        assert flagged_later == [k], "only the spike is flagged in its window"
-        assert np.all(d_obs[window] == 0) and np.all(d_skip[window] == 1), (
-            f"fixes within tau_a of the spike at {t_s[k]:.1f} s observed roll/pitch"
-        )
-        held += window.size
-        nxt = window[-1] + 1
-        after += int(d_obs[nxt] == 1)
-    assert held >= 10 * len(spikes) * 0.9  # tau_a = 2 s at 5 Hz: the spike and 9 fixes after it
-    assert after >= len(spikes) - 1, "observations do not resume after tau_a"
+    assert np.all(d_obs[later][held[later]] == 0) and np.all(d_skip[later][held[later]] == 1), (
+        "a fix within tau_a of a flagged one observed roll/pitch"
+    )
+    free = later[~held[later]]
+    assert np.mean(d_obs[free] == 1) > 0.95, "fixes away from flagged ones stopped observing"
+    assert held[later].sum() >= 10 * len(spikes)  # tau_a = 2 s at 5 Hz after each spike at least
+    assert held[later].sum() <= 10 * len(spikes) + 0.05 * later.size  # and few clean fixes beside
 
     # Course over ground: the spike fix's velocity is not observed under FTA, it is in plain mode.
     k = spikes[0]
