@@ -116,14 +116,14 @@ static float series(const float *c, float x, size_t n)
     return s;
 }
 
-void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
+/* mca_cs_singer_q with em1 = expm1(-alpha t) given (the transition has it already). */
+static void singer_q_em1(float alpha, float t, float s2, float em1, float q33[9])
 {
     const float qc = 2.0f * alpha * s2; /* white-noise density of w_a */
     const float x = alpha * t;
     float q11, q12, q13, q22, q23, q33v;
-    /* (1 - e)^2 and 1 - e^2 are cancellation-free through expm1f on both sides. */
-    const float em1 = mca_expm1f(-x);         /* e - 1 */
-    const float em2 = mca_expm1f(-2.0f * x);  /* e^2 - 1 */
+    /* (1 - e)^2 and 1 - e^2 are cancellation-free through expm1: e^2 - 1 = (e - 1)(e + 1) */
+    const float em2 = em1 * (em1 + 2.0f); /* e^2 - 1 */
     if (x < MCA_CS_SERIES_X) {
         /* q_ij = q T^p / 2 * g_ij(x)/x^p, series of scripts/gen_singer_series.py */
         const float t2 = t * t, t3 = t2 * t;
@@ -134,7 +134,7 @@ void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
         q22 = 0.5f * qc * t3 * series(mca_cs_series_g22, x, n);
     } else {
         /* DESIGN.md 3, exact Singer forms; no cancellation worth a bit for x >= 2 */
-        const float e = mca_expf(-x), e2 = e * e;
+        const float e = 1.0f + em1, e2 = e * e;
         const float a2 = alpha * alpha, a3 = a2 * alpha, a4 = a3 * alpha, a5 = a4 * alpha;
         q11 = qc / (2.0f * a5) *
               (1.0f - e2 + 2.0f * x + 2.0f * x * x * x / 3.0f - 2.0f * x * x - 4.0f * x * e);
@@ -155,6 +155,11 @@ void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
     q33[8] = q33v;
 }
 
+void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
+{
+    singer_q_em1(alpha, t, s2, mca_expm1f(-alpha * t), q33);
+}
+
 /* mca_cs_transition's entries that can be non-zero (A3 of Phi, its diagonal, Q's 3 x 3 block and
  * Q44, Q55); the others are left as they are. The predicts read no other entry. */
 static void transition_nz(const mca_cs_config_t *cfg, float t, float s2, float phi[25], float q[25])
@@ -172,18 +177,20 @@ static void transition_nz(const mca_cs_config_t *cfg, float t, float s2, float p
     phi[6] = 1.0f;
     phi[7] = -em1 / alpha; /* (1 - e)/alpha */
     phi[12] = 1.0f + em1;  /* e */
-    phi[18] = mca_expf(-beta * t);
-    phi[24] = mca_expf(-gamma * t);
+    /* Gauss-Markov blocks from one expm1 each: exp(-b T) = 1 + m, 1 - exp(-2 b T) = -m (m + 2) */
+    const float mb = mca_expm1f(-beta * t), mg = mca_expm1f(-gamma * t);
+    phi[18] = 1.0f + mb;
+    phi[24] = 1.0f + mg;
     float q33[9];
-    mca_cs_singer_q(alpha, t, s2, q33);
+    singer_q_em1(alpha, t, s2, em1, q33);
     for (size_t i = 0; i < 3u; ++i) {
         for (size_t j = 0; j < 3u; ++j) {
             q[i * 5u + j] = q33[i * 3u + j];
         }
     }
     const float sp2 = cfg->sigma_p_m * cfg->sigma_p_m, sv2 = cfg->sigma_v_mps * cfg->sigma_v_mps;
-    q[18] = -sp2 * mca_expm1f(-2.0f * beta * t);  /* sigma_p^2 (1 - exp(-2 beta T)) */
-    q[24] = -sv2 * mca_expm1f(-2.0f * gamma * t); /* sigma_v^2 (1 - exp(-2 gamma T)) */
+    q[18] = -sp2 * (mb * (mb + 2.0f)); /* sigma_p^2 (1 - exp(-2 beta T)) */
+    q[24] = -sv2 * (mg * (mg + 2.0f)); /* sigma_v^2 (1 - exp(-2 gamma T)) */
 }
 
 void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[25], float q[25])
