@@ -690,22 +690,22 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
             k[i] = u[i] * inv;
             const float v = xs[i] + k[i] * nu;
             xn[i] = v;
-            fin += v - v;
+            fin += v * 0.0f;
         }
         for (size_t i = 0; i < n; ++i) {
             const float ki = k[i];
             for (size_t j = i; j < n; ++j) {
                 const float v = ps[i * n + j] - ki * u[j];
                 pn[i * n + j] = v;
-                fin += v - v;
+                fin += v * 0.0f;
             }
         }
         xs = xn;
         ps = pn;
     }
     /* xs, ps: the result (x and P themselves when no row was kept, copied onto themselves).
-     * fin, the sum of v - v over every value any row wrote, is +0 while all were finite and NaN
-     * after one that was not. */
+     * fin, the sum of v * 0 over every value any row wrote (one VMLA each), is +0 while all were
+     * finite (v * 0 is +0 or -0) and NaN after one that was not. */
     if (!isfinite(fin)) {
         return MCA_ERR_NONFINITE;
     }
