@@ -206,19 +206,27 @@ MCA_NOINLINE static mca_status_t gravity_measure(const mca_att_t *att, const flo
     if (gn < 0.5f * g || gn > 1.5f * g) {
         return MCA_ERR_BAD_ARG;
     }
-    float eul[3];
-    mca_quat_to_euler(eul, q_d);
-    if (fabsf(eul[1]) > att->cfg.max_tilt_obs_rad) {
+    /* Roll and pitch of q_d as the down axis in body axes, d = C_nb^T e_down = [-sin theta,
+     * sin phi cos theta, cos phi cos theta]: s = sin theta, (dy, dz) = cos theta (sin phi,
+     * cos phi). */
+    static const float e_down[3] = {0.0f, 0.0f, 1.0f};
+    float d[3];
+    mca_quat_rotate(d, qd_inv, e_down);
+    const float dy = d[1], dz = d[2];
+    float s = -d[0];
+    s = s > 1.0f ? 1.0f : (s < -1.0f ? -1.0f : s);
+    const float ct = sqrtf(1.0f - s * s);
+    if (fabsf(mca_atan2f(s, ct)) > att->cfg.max_tilt_obs_rad) { /* the pitch of mca_quat_to_euler */
         return MCA_ERR_BAD_ARG;
     }
-    const float phi_m = mca_atan2f(gb[1], gb[2]);
-    const float theta_m = mca_atan2f(-gb[0], sqrtf(gb[1] * gb[1] + gb[2] * gb[2]));
-    nu[0] = mca_wrap_pi(phi_m - eul[0]);
-    nu[1] = theta_m - eul[1];
-    float sp, cp, st, ct;
-    mca_sincosf(eul[0], &sp, &cp);
-    mca_sincosf(eul[1], &st, &ct);
-    const float tt = st / ct; /* |theta| <= max_tilt_obs < 90 deg */
+    /* The residuals as the angles from the predicted to the measured direction, one atan2 each
+     * (phi_m - phi wrapped, theta_m - theta; both pitches lie in (-90, 90) deg):
+     * phi_m = atan2(gy, gz), theta_m = atan2(-gx, hypot(gy, gz)). */
+    const float hg = sqrtf(gb[1] * gb[1] + gb[2] * gb[2]);
+    nu[0] = mca_atan2f(gb[1] * dz - gb[2] * dy, gb[1] * dy + gb[2] * dz);
+    nu[1] = mca_atan2f(-gb[0] * ct - hg * s, hg * ct - gb[0] * s);
+    const float ict = 1.0f / ct; /* cos theta > 0: |theta| <= max_tilt_obs < 90 deg */
+    const float sp = dy * ict, cp = dz * ict, tt = s * ict;
     e_rows[0] = 1.0f;
     e_rows[1] = sp * tt;
     e_rows[2] = cp * tt;

@@ -769,7 +769,12 @@ MCA_NOINLINE static mca_status_t update_plain_rows(float *x, float *p, size_t n,
 {
     float *ct = ws + WS_CT(n, m);
     float t_stat = 0.0f;
-    if (nu_t != NULL && !small_test_stat(nu_t, c_t, m, &t_stat)) {
+    /* A finite closed-form T comes only from finite nu_t and C_t (every entry enters it); else
+     * the explicit check, then the factor. */
+    if (nu_t != NULL && !(small_test_stat(nu_t, c_t, m, &t_stat) && isfinite(t_stat))) {
+        if (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m)) {
+            return MCA_ERR_NONFINITE;
+        }
         const mca_status_t s = test_stat(nu_t, c_t, ct, ws + WS_LT(n, m), ws + WS_Y(n, m), m, &t_stat);
         if (s != MCA_OK) {
             return s;
@@ -839,15 +844,17 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
             return MCA_ERR_BAD_ARG;
         }
     }
-    if (tested && (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m))) {
-        return MCA_ERR_NONFINITE;
-    }
     /* Plain mode with a diagonal R needs neither nu nor C before the update: the rows give T.
      * They are formed only for a report (the general path). The row-by-row update checks its
      * inputs through what it computes: every entry of H and of R's diagonal reaches its row's s
      * (checked finite and positive), every entry of x, z and P's upper triangle reaches x+ or P+
-     * (checked finite before anything is written), so a non-finite input is NONFINITE there too. */
-    if (mode == MCA_ROBUST_PLAIN && rep == NULL && r_diagonal(r, m)) {
+     * (checked finite before anything is written), so a non-finite input is NONFINITE there too;
+     * so does the test innovation (update_plain_rows). */
+    const int plain_rows = mode == MCA_ROBUST_PLAIN && rep == NULL && r_diagonal(r, m);
+    if (tested && !plain_rows && (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m))) {
+        return MCA_ERR_NONFINITE;
+    }
+    if (plain_rows) {
         return update_plain_rows(x, p, n, h, z, r, m, rs, nu_t, c_t, ws);
     }
     /* the general path checks z, R and H here; x and P before the joint update, a rejection,

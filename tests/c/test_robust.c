@@ -812,6 +812,26 @@ static void test_plain_test_statistic_small_m(void)
         CHECK_CLOSE(rep.t_stat, t_ref, 4e-7 * t_ref);
         CHECK(memcmp(x1, x2, sizeof(x1)) == 0 && memcmp(p1, p2, sizeof(p1)) == 0); /* the update itself */
     }
+    /* a non-finite test innovation or covariance, m = 1 and 2: NONFINITE, nothing written */
+    const float nu_nan[2] = {NAN, 0.5f}, nu_inf[2] = {0.5f, INFINITY};
+    const float c_inf[4] = {1.3f, INFINITY, -INFINITY, 0.6f}, c_nan0[4] = {NAN, 0.0f, 0.0f, 1.0f};
+    const float *nus[4] = {nu_nan, nu_inf, nu_t, nu_t};
+    const float *cs[4] = {c_t, c_t, c_inf, c_nan0};
+    for (size_t m = 1; m <= 2; ++m) {
+        for (int k = 0; k < 4; ++k) {
+            if (m == 1u && (k == 1 || k == 2)) {
+                continue; /* m = 1 reads nu_t[0] and c_t[0] only */
+            }
+            mca_robust_state_t rs;
+            mca_robust_state_init(&rs);
+            float x1[N], p1[N * N];
+            memcpy(x1, x0, sizeof(x1));
+            memcpy(p1, p0, sizeof(p1));
+            CHECK_EQ_INT(mca_kf_update_tested(x1, p1, N, h, z, r, m, NULL, &rs, nus[k], cs[k], g_ws, WS_MAX, NULL),
+                         MCA_ERR_NONFINITE);
+            CHECK(memcmp(x1, x0, sizeof(x1)) == 0 && memcmp(p1, p0, sizeof(p1)) == 0);
+        }
+    }
     /* indefinite C_t (det < 0), and a non-positive first pivot: SINGULAR, nothing written */
     const float c_bad[4] = {1.0f, 2.0f, 2.0f, 1.0f};
     const float c_neg[4] = {-1.0f, 0.0f, 0.0f, 1.0f};
