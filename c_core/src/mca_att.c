@@ -216,7 +216,7 @@ MCA_NOINLINE static mca_status_t gravity_measure(const mca_att_t *att, const flo
     float s = -d[0];
     s = s > 1.0f ? 1.0f : (s < -1.0f ? -1.0f : s);
     const float ct = sqrtf(1.0f - s * s);
-    if (fabsf(mca_atan2f(s, ct)) > att->cfg.max_tilt_obs_rad) { /* the pitch of mca_quat_to_euler */
+    if (fabsf(mca_atan2f(s, ct)) > att->cfg.max_tilt_obs_rad) { /* the pitch of q_d, as asin(s) */
         return MCA_ERR_BAD_ARG;
     }
     /* The residuals as the angles from the predicted to the measured direction, one atan2 each

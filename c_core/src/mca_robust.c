@@ -579,7 +579,7 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
     for (size_t i = 0; i < n * m; ++i) {
         b[i] = 0.5f * b[i] - u[i];
     }
-    float fin = 0.0f; /* acc - acc: +0 while every entry is finite, NaN after one that is not */
+    float fin = 0.0f; /* sum of acc * 0: +0 while every entry is finite, NaN after one that is not */
     for (size_t i = 0; i < n; ++i) {
         const float *ai = &b[i * m], *ki = &kk[i * m];
         for (size_t j = i; j < n; ++j) {
@@ -590,7 +590,7 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
             }
             pn[i * n + j] = acc;
             pn[j * n + i] = acc;
-            fin += acc - acc;
+            fin += acc * 0.0f;
         }
     }
     /* the lower triangle is the mirror of the upper one: checking the upper one checks P+ */
