@@ -57,11 +57,18 @@ static void test_quat(void)
     for (int i = 0; i < 4; ++i) {
         CHECK_CLOSE(qa[i], qb[i], 1e-6);
     }
-    /* small-angle branch continuous with the exact one */
-    const float r1[3] = {0.0f, 0.0f, 0.999e-3f}, r2[3] = {0.0f, 0.0f, 1.001e-3f};
-    mca_quat_from_rotvec(qa, r1);
-    mca_quat_from_rotvec(qb, r2);
-    CHECK_CLOSE(qa[3] / 0.999e-3f, qb[3] / 1.001e-3f, 1e-7);
+    /* both branches (series below 0.2 rad, sincos above) against the exact quaternion, in double,
+     * to float32 rounding, on both sides of the switch */
+    const float angles[] = {1e-6f, 1e-3f, 0.01f, 0.05f, 0.1f, 0.1999f, 0.2f, 0.2001f, 0.5f, 2.0f};
+    for (size_t k = 0; k < sizeof(angles) / sizeof(angles[0]); ++k) {
+        const float rk[3] = {0.6f * angles[k], -0.8f * angles[k], 0.0f};
+        mca_quat_from_rotvec(qa, rk);
+        const double ha = 0.5 * (double)angles[k];
+        CHECK_CLOSE(qa[0], cos(ha), 1.2e-7);
+        CHECK_CLOSE(qa[1], 0.6 * sin(ha), 1.2e-7 * sin(ha) + 1e-12);
+        CHECK_CLOSE(qa[2], -0.8 * sin(ha), 1.2e-7 * sin(ha) + 1e-12);
+        CHECK_CLOSE(qa[3], 0.0, 0.0);
+    }
     /* product: two half turns about z make a full turn (q = -1) */
     const float h[4] = {0.0f, 0.0f, 0.0f, 1.0f};
     float r[4];
