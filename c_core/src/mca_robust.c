@@ -721,29 +721,12 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
     return MCA_OK;
 }
 
-/* T = nu_t^T C_t^-1 nu_t of a test innovation: C_t symmetrised into ct, factored into lt, t
- * (m) scratch. SINGULAR when C_t is not positive definite. */
-static mca_status_t test_stat(const float *nu_t, const float *c_t, float *ct, float *lt, float *t, size_t m,
-                              float *t_stat)
+/* T of a test innovation with m <= 2 in closed form from the symmetric ct (inverse by the
+ * determinant): 1 when ct is positive definite with a finite determinant, 0 otherwise. A CS
+ * axis (m = 2) costs ~20 flops instead of the factor and two triangular solves. */
+static int small_test_stat(const float *nu_t, const float *ct, size_t m, float *t_stat)
 {
-    for (size_t i = 0; i < m * m; ++i) {
-        ct[i] = c_t[i];
-    }
-    mca_mat_symmetrize(ct, m);
-    if (mca_cholesky(lt, ct, m) != MCA_OK) {
-        return MCA_ERR_SINGULAR;
-    }
-    *t_stat = nis(lt, nu_t, t, m);
-    return MCA_OK;
-}
-
-/* T of a test innovation with m <= 2 in closed form (C symmetrised, inverse by its determinant):
- * 1 when C is positive definite with a finite determinant, 0 otherwise (the caller then takes
- * test_stat's Cholesky path, which decides SINGULAR). A CS axis (m = 2) costs ~20 flops instead
- * of the factor and two triangular solves. */
-static int small_test_stat(const float *nu_t, const float *c_t, size_t m, float *t_stat)
-{
-    const float a = c_t[0];
+    const float a = ct[0];
     if (m > 2u || !(a > 0.0f)) {
         return 0;
     }
@@ -751,13 +734,33 @@ static int small_test_stat(const float *nu_t, const float *c_t, size_t m, float 
         *t_stat = nu_t[0] * nu_t[0] / a;
         return 1;
     }
-    const float b = 0.5f * (c_t[1] + c_t[2]), d = c_t[3];
+    const float b = ct[1], d = ct[3];
     const float det = a * d - b * b;
     if (!(det > 0.0f) || !(det <= 3.4028235e38f)) {
         return 0;
     }
     *t_stat = (d * nu_t[0] * nu_t[0] - 2.0f * b * nu_t[0] * nu_t[1] + a * nu_t[1] * nu_t[1]) / det;
     return 1;
+}
+
+/* T = nu_t^T C_t^-1 nu_t of a test innovation: C_t symmetrised into ct (what the modes read);
+ * for m <= 2 in closed form, else (or when that refuses ct) factored into lt, t (m) scratch.
+ * SINGULAR when C_t is not positive definite. */
+static mca_status_t test_stat(const float *nu_t, const float *c_t, float *ct, float *lt, float *t, size_t m,
+                              float *t_stat)
+{
+    for (size_t i = 0; i < m * m; ++i) {
+        ct[i] = c_t[i];
+    }
+    mca_mat_symmetrize(ct, m);
+    if (small_test_stat(nu_t, ct, m, t_stat)) {
+        return MCA_OK;
+    }
+    if (mca_cholesky(lt, ct, m) != MCA_OK) {
+        return MCA_ERR_SINGULAR;
+    }
+    *t_stat = nis(lt, nu_t, t, m);
+    return MCA_OK;
 }
 
 /* Plain mode, diagonal R, no report: the rows one by one (apply_rows), T from them or from the
@@ -769,15 +772,17 @@ MCA_NOINLINE static mca_status_t update_plain_rows(float *x, float *p, size_t n,
 {
     float *ct = ws + WS_CT(n, m);
     float t_stat = 0.0f;
-    /* A finite closed-form T comes only from finite nu_t and C_t (every entry enters it); else
-     * the explicit check, then the factor. */
-    if (nu_t != NULL && !(small_test_stat(nu_t, c_t, m, &t_stat) && isfinite(t_stat))) {
-        if (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m)) {
-            return MCA_ERR_NONFINITE;
-        }
+    /* A finite T comes only from finite nu_t and C_t (every entry enters it): the explicit
+     * finite check runs only when T is not finite or C_t was refused. */
+    if (nu_t != NULL) {
         const mca_status_t s = test_stat(nu_t, c_t, ct, ws + WS_LT(n, m), ws + WS_Y(n, m), m, &t_stat);
-        if (s != MCA_OK) {
-            return s;
+        if (s != MCA_OK || !isfinite(t_stat)) {
+            if (!mca_all_finite(nu_t, m) || !mca_all_finite(c_t, m * m)) {
+                return MCA_ERR_NONFINITE;
+            }
+            if (s != MCA_OK) {
+                return s;
+            }
         }
     }
     float t_rows;

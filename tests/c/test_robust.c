@@ -767,9 +767,10 @@ static void test_row_by_row_equals_joint_update(void)
     CHECK_CLOSE(rs2.t_stat, t_ref, 1e-5 * t_ref);
 }
 
-/* The test statistic of a plain update without a report (the navigation's CS updates): m <= 2 in
- * closed form, larger m and indefinite C_t through the Cholesky factor. Checked against T in
- * double, against the report path (which always factors), and SINGULAR for an indefinite C_t. */
+/* The test statistic of a test innovation: m <= 2 in closed form, larger m and indefinite C_t
+ * through the Cholesky factor. Checked against T in double on the row path (no report, the
+ * navigation's CS updates) and the general path (report), and SINGULAR / NONFINITE for an
+ * indefinite or non-finite C_t or nu_t. */
 static void test_plain_test_statistic_small_m(void)
 {
     enum { N = 5 };

@@ -145,7 +145,7 @@ size_t mca_kf_ws_len(size_t n, size_t m);
  * Robust modes and a report form nu and C first (O(nz (n + m))), factor C (m^3 / 6, m sqrtf)
  * for T; AKF adds O(m n + MCA_AKF_WINDOW) and one log2 (the core's own, ~15 flops, no libm);
  * IGG-III m^2 sqrtf; fuzzy O(1). A test innovation adds one m x m factor and solve (for
- * m <= 2 on the plain row path, T in closed form from C_t's determinant). On the
+ * m <= 2, T in closed form from C_t's determinant). On the
  * Cortex-M4F (-Os, scripts/fw_report.py) a plain CS axis update (n = 5, m <= 2) is ~2.7k
  * instructions (mca_cs3_update mean / 3), the roll/pitch update
  * (n = 6, m = 2) ~2k; scripts/fw_profile.py splits them by function. Stack: scalars and pointers
