@@ -266,16 +266,17 @@ static void axis_aid(mca_cs_axis_t *ax, float t, const float phi[25], const floa
     ax->aid.valid = 1u;
 }
 
-/* Predict with a T already validated, and Phi, Q of mca_cs_transition(&ax->cfg, t, s2) with
- * s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]). Phi is block diagonal, [[A3, 0], [0,
+/* Predict with a T already validated, Phi and Q1 of mca_cs_transition(&ax->cfg, t, 1), and
+ * s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]): the Singer block of Q is s2 times that of Q1
+ * (the Gauss-Markov entries do not depend on s2), so axes of one configuration share Phi, Q1. Phi is block diagonal, [[A3, 0], [0,
  * diag(eb, eg)]], so Phi P Phi^T is done in place by rows then columns (~80 multiplies
  * instead of 250). */
-static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float phi[25], const float q[25],
+static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float phi[25], const float q1[25],
                               const mca_cs_inc_t *inc)
 {
     ax->aid.valid = 0u;
     if (inc != NULL) {
-        axis_aid(ax, t, phi, q, inc); /* from the posterior, before it is predicted */
+        axis_aid(ax, t, phi, q1, inc); /* from the posterior, before it is predicted */
     }
     /* mean: eq. 17, Phi1 = constant acceleration + Gauss-Markov decay of eps */
     const float a = ax->x[2];
@@ -294,13 +295,14 @@ static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float 
         p[5u * j + 4u] *= phi[24];
     }
     const float qs = ax->rs.q_scale; /* AKF (ALGORITHMS.md 5); 1 in the other modes */
+    const float qa = qs * s2;
     for (size_t i = 0; i < 3u; ++i) {
         for (size_t j = 0; j < 3u; ++j) {
-            p[5u * i + j] += qs * q[5u * i + j];
+            p[5u * i + j] += qa * q1[5u * i + j];
         }
     }
-    p[18] += qs * q[18];
-    p[24] += qs * q[24];
+    p[18] += qs * q1[18];
+    p[24] += qs * q1[24];
     /* Phi P Phi^T by rows then columns is symmetric up to rounding: the upper triangle (what the
      * update reads) is mirrored, not averaged (a third of mca_mat_symmetrize's instructions) */
     for (size_t i = 1; i < 5u; ++i) {
@@ -313,10 +315,9 @@ static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float 
 
 static void axis_predict(mca_cs_axis_t *ax, float t, const mca_cs_inc_t *inc)
 {
-    float phi[25], q[25];
-    const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
-    transition_nz(&ax->cfg, t, s2, phi, q);
-    axis_predict_with(ax, t, s2, phi, q, inc);
+    float phi[25], q1[25];
+    transition_nz(&ax->cfg, t, 1.0f, phi, q1);
+    axis_predict_with(ax, t, mca_cs_maneuver_var(&ax->cfg, ax->x[2]) /* eq. 16: abar = a_hat */, phi, q1, inc);
 }
 
 static int same(float a, float b)
@@ -324,11 +325,11 @@ static int same(float a, float b)
     return !(a < b) && !(a > b);
 }
 
-/* 1 when mca_cs_transition gives the same Phi and Q for (a, s2a) and (b, s2b) at any T: the
- * fields it reads and the maneuver variance are equal. */
-static int same_model(const mca_cs_config_t *a, float s2a, const mca_cs_config_t *b, float s2b)
+/* 1 when mca_cs_transition gives the same Phi and Q for a and b at any T and s2: the fields it
+ * reads are equal. */
+static int same_model(const mca_cs_config_t *a, const mca_cs_config_t *b)
 {
-    return same(s2a, s2b) && same(a->tau_a_s, b->tau_a_s) && same(a->tau_p_s, b->tau_p_s) &&
+    return same(a->tau_a_s, b->tau_a_s) && same(a->tau_p_s, b->tau_p_s) &&
            same(a->tau_v_s, b->tau_v_s) && same(a->sigma_p_m, b->sigma_p_m) && same(a->sigma_v_mps, b->sigma_v_mps);
 }
 
@@ -452,20 +453,19 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t, const mca_cs_inc_t *c
             return st;
         }
     }
-    /* N and E share the horizontal configuration and, in fixed mode (or with equal a_hat),
-     * the maneuver variance: an axis whose model equals the previous axis' reuses its Phi
-     * and Q (7 exp/expm1 calls and the Singer block saved, the same bits). */
-    float phi[25], q[25], s2_prev = 0.0f;
+    /* N and E share the horizontal configuration: an axis whose model equals the previous
+     * axis' reuses its Phi and Q1 (3 expm1 calls and the Singer block saved, the same bits as
+     * its own; the maneuver variance scales Q1 in axis_predict_with). */
+    float phi[25], q1[25];
     const mca_cs_config_t *cfg_prev = NULL;
     for (size_t i = 0; i < 3u; ++i) {
         mca_cs_axis_t *ax = &cs->axis[i];
-        const float s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]); /* eq. 16: abar = a_hat */
-        if (cfg_prev == NULL || !same_model(cfg_prev, s2_prev, &ax->cfg, s2)) {
-            transition_nz(&ax->cfg, t, s2, phi, q);
+        if (cfg_prev == NULL || !same_model(cfg_prev, &ax->cfg)) {
+            transition_nz(&ax->cfg, t, 1.0f, phi, q1);
             cfg_prev = &ax->cfg;
-            s2_prev = s2;
         }
-        axis_predict_with(ax, t, s2, phi, q, inc != NULL ? inc[i] : NULL);
+        axis_predict_with(ax, t, mca_cs_maneuver_var(&ax->cfg, ax->x[2]) /* eq. 16: abar = a_hat */, phi, q1,
+                          inc != NULL ? inc[i] : NULL);
     }
     return MCA_OK;
 }

@@ -629,11 +629,12 @@ static int r_diagonal(const float *r, size_t m)
  * one left. Row i: u = P h_i^T, s = h_i u + R_eff,ii, k = u / s, x += k (z_i - h_i x),
  * P -= k u^T. For this gain (the Kalman gain of the row) Joseph's form is the same matrix:
  * (I - k h) P (I - k h)^T + k r k^T = P - k u^T - u k^T + k s k^T = P - k u^T, as k s = u; only
- * the inflated gains of FTA and fuzzy need Joseph (the joint path). P is kept as its upper
- * triangle while the rows run (k_i u_j for j >= i: symmetric by construction, n(n+1)/2
- * multiplies a row) and mirrored once at the end. No m x m factor, no gain solve: O(n^2) per
- * row instead of O(n^2 m + n m^2) with an m x m Cholesky. P is read as the symmetric matrix its
- * upper triangle gives (the lower one is not read, and is written as the mirror). keep: bit i
+ * the inflated gains of FTA and fuzzy need Joseph (the joint path). Each row computes P's upper
+ * triangle (k_i u_j for j >= i: symmetric by construction, n(n+1)/2 multiplies a row) and
+ * writes every value twice, mirrored, so the next row reads P h^T from whole rows of P (one
+ * contiguous loop per non-zero of h) and the result is one copy. No m x m factor, no gain
+ * solve: O(n^2) per row instead of O(n^2 m + n m^2) with an m x m Cholesky. The input P is
+ * read as symmetric: its upper triangle and the rows h uses. keep: bit i
  * set, row i is applied; d: the R increments (NULL: none). Works in ws (general layout: pn, then
  * u, k in the kk, a blocks, xn in its own) and writes x, p only when every row's s is positive
  * and the result is finite. t_rows: the sum of the rows' nu_i^2 / s_i, which is
@@ -647,9 +648,10 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
     float *u = pn + n * n;
     float *k = u + n * m;
     float *xn = ws + WS_XN(n, m);
-    /* The first row reads x and P and writes xn, pn; the later ones work in place there. Every
-     * entry of x and of P's upper triangle reaches x+ and P+ through a sum, so the final check
-     * also catches a non-finite input. */
+    /* The first row reads x and P and writes xn, pn; the later ones work in place there. P H^T
+     * is read from the rows of P that H uses (P symmetric). Every entry of x, of P's upper
+     * triangle and of the rows read reaches x+ or P+ through a sum, so the final check also
+     * catches a non-finite input there. */
     const float *xs = x, *ps = p;
     float t_sum = 0.0f, fin = 0.0f;
     for (size_t row = 0; row < m; ++row) {
@@ -667,11 +669,9 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
                 continue;
             }
             hx += hv * xs[l];
-            for (size_t i = 0; i < l; ++i) { /* column l of P: P_il = upper P_il above the diagonal */
-                u[i] += ps[i * n + l] * hv;
-            }
-            for (size_t i = l; i < n; ++i) { /* ... and P_li from the diagonal on */
-                u[i] += ps[l * n + i] * hv;
+            const float *pl = &ps[l * n]; /* row l of the symmetric P is its column l */
+            for (size_t i = 0; i < n; ++i) {
+                u[i] += pl[i] * hv;
             }
         }
         float s = r[row * m + row] + (d != NULL ? d[row] : 0.0f);
@@ -694,28 +694,27 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
         }
         for (size_t i = 0; i < n; ++i) {
             const float ki = k[i];
-            for (size_t j = i; j < n; ++j) {
+            for (size_t j = i; j < n; ++j) { /* the upper triangle, mirrored: P+ whole (the next
+                                                  row reads rows of it); in place, a mirrored write
+                                                  is below the diagonal, never read later here */
                 const float v = ps[i * n + j] - ki * u[j];
                 pn[i * n + j] = v;
+                pn[j * n + i] = v;
                 fin += v * 0.0f;
             }
         }
         xs = xn;
         ps = pn;
     }
-    /* xs, ps: the result (x and P themselves when no row was kept, copied onto themselves).
+    /* xs, ps: the result (x and P themselves when no row was kept: nothing to copy).
      * fin, the sum of v * 0 over every value any row wrote (one VMLA each), is +0 while all were
      * finite (v * 0 is +0 or -0) and NaN after one that was not. */
     if (!isfinite(fin)) {
         return MCA_ERR_NONFINITE;
     }
-    for (size_t i = 0; i < n; ++i) {
-        x[i] = xs[i];
-        for (size_t j = i; j < n; ++j) {
-            const float v = ps[i * n + j];
-            p[i * n + j] = v;
-            p[j * n + i] = v;
-        }
+    if (ps != p) {
+        mca_copyf(x, xs, n);
+        mca_copyf(p, ps, n * n);
     }
     *t_rows = t_sum;
     return MCA_OK;

@@ -136,8 +136,8 @@ size_t mca_kf_ws_len(size_t n, size_t m);
  *   (every mode but FTA / fuzzy inflation on a detection): each kept row is a scalar update,
  *   u = P h^T, s = h u + r, k = u / s, x += k nu, P -= k u^T on the upper triangle (for this
  *   gain Joseph's form gives the same matrix), T = sum nu_i^2 / s_i. Cost per row: nz n
- *   multiply-adds for u (nz the row's non-zero entries), n(n+1)/2 for P, one division; P is
- *   read as the symmetric matrix its upper triangle gives, and written whole. In plain mode
+ *   multiply-adds for u (nz the row's non-zero entries: rows of P, as P is symmetric),
+ *   n(n+1)/2 for P, mirrored as it is written, one division; P is written whole. In plain mode
  *   without a report nothing else runs: no m x m matrix is formed or factored.
  * - Joint, otherwise: nu, P H^T, C = H P H^T + R over H's non-zero entries, C's Cholesky
  *   factor, the gain by n solves of size m, expanded Joseph P + A K^T + K A^T (n^2 m + 2 n m^2
@@ -162,7 +162,7 @@ size_t mca_kf_ws_len(size_t n, size_t m);
  *
  * @param[in,out] x      state, n values (finite)
  * @param[in,out] p      covariance, n x n, symmetric (finite; the row path reads its upper
- *                       triangle only and writes P+ whole)
+ *                       triangle and the rows H uses, and writes P+ whole)
  * @param[in]     n      state size, >= 1
  * @param[in]     h      measurement matrix, m x n (finite)
  * @param[in]     z      measurement, m values
