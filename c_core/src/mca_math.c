@@ -68,9 +68,13 @@ void mca_mat_symmetrize(float *a, size_t n)
 
 void mca_copyf(float *dst, const float *src, size_t n)
 {
-    for (size_t i = 0; i < n; ++i) {
-        dst[i] = src[i];
+    if (n == 0u) {
+        return;
     }
+    const float *const end = src + n;
+    do { /* do-while: -Os compiles it one branch shorter a value */
+        *dst++ = *src++;
+    } while (src != end);
 }
 
 void mca_copy_bytes(void *dst, const void *src, size_t n)

@@ -623,6 +623,34 @@ static int r_diagonal(const float *r, size_t m)
     return 1;
 }
 
+/* One row of apply_rows after its s: x+ = x + k nu and the upper triangle of P+ = P - k u^T,
+ * each value written twice (mirrored into the lower triangle), k = u inv. In place (xn = xs,
+ * pn = ps) a mirrored write is below the diagonal, never read later by this row. Returns the
+ * sum of v * 0 over the values written (NaN after a non-finite one). Its own function: the
+ * inner loop keeps its five pointers in registers (inlined into apply_rows, it spilled). */
+MCA_NOINLINE static float row_apply(const float *xs, const float *ps, float *xn, float *pn, const float *u,
+                                    size_t n, float inv, float nu)
+{
+    float fin = 0.0f;
+    const float *const uend = &u[n];
+    for (size_t i = 0; i < n; ++i) {
+        const float ki = u[i] * inv;
+        const float xv = xs[i] + ki * nu;
+        xn[i] = xv;
+        fin += xv * 0.0f;
+        const float *pr = &ps[i * n + i], *uj = &u[i];
+        float *pw = &pn[i * n + i], *pc = pw;
+        do { /* n - i >= 1 values; do-while: -Os compiles it one branch shorter */
+            const float v = *pr++ - ki * *uj++;
+            *pw++ = v;
+            *pc = v;
+            pc += n;
+            fin += v * 0.0f;
+        } while (uj != uend);
+    }
+    return fin;
+}
+
 /* Section-1 steps 4-6 one row at a time (ALGORITHMS.md 1, sequential form): for a diagonal
  * R_eff = R + diag(d) and an unscaled gain (gamma 1) the joint update equals the kept rows
  * applied one after the other as scalar updates, each on the state and covariance the previous
@@ -646,7 +674,6 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
 {
     float *pn = ws;
     float *u = pn + n * n;
-    float *k = u + n * m;
     float *xn = ws + WS_XN(n, m);
     /* The first row reads x and P and writes xn, pn; the later ones work in place there. P H^T
      * is read from the rows of P that H uses (P symmetric). Every entry of x, of P's upper
@@ -670,9 +697,10 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
             }
             hx += hv * xs[l];
             const float *pl = &ps[l * n]; /* row l of the symmetric P is its column l */
-            for (size_t i = 0; i < n; ++i) {
+            size_t i = 0;
+            do { /* n >= 1; do-while: -Os compiles it one branch shorter */
                 u[i] += pl[i] * hv;
-            }
+            } while (++i < n);
         }
         float s = r[row * m + row] + (d != NULL ? d[row] : 0.0f);
         for (size_t l = 0; l < n; ++l) {
@@ -686,23 +714,7 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
         }
         const float inv = 1.0f / s, nu = z[row] - hx;
         t_sum += nu * (nu * inv);
-        for (size_t i = 0; i < n; ++i) {
-            k[i] = u[i] * inv;
-            const float v = xs[i] + k[i] * nu;
-            xn[i] = v;
-            fin += v * 0.0f;
-        }
-        for (size_t i = 0; i < n; ++i) {
-            const float ki = k[i];
-            for (size_t j = i; j < n; ++j) { /* the upper triangle, mirrored: P+ whole (the next
-                                                  row reads rows of it); in place, a mirrored write
-                                                  is below the diagonal, never read later here */
-                const float v = ps[i * n + j] - ki * u[j];
-                pn[i * n + j] = v;
-                pn[j * n + i] = v;
-                fin += v * 0.0f;
-            }
-        }
+        fin += row_apply(xs, ps, xn, pn, u, n, inv, nu);
         xs = xn;
         ps = pn;
     }
@@ -832,12 +844,11 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     if (m == 0u || m > MCA_MEAS_MAX || n == 0u || ws_len < (size_t)MCA_KF_WS_LEN(n, m)) {
         return MCA_ERR_BAD_ARG;
     }
-    mca_robust_mode_t mode = MCA_ROBUST_PLAIN;
-    if (rc != NULL) {
-        if (mca_robust_config_check(rc) != MCA_OK) {
-            return MCA_ERR_BAD_CONFIG;
-        }
-        mode = (mca_robust_mode_t)rc->mode;
+    /* Plain mode reads no other field of rc: the range check is for the modes that do (an
+     * unknown mode is not plain, so it is refused there). */
+    const mca_robust_mode_t mode = rc != NULL ? (mca_robust_mode_t)rc->mode : MCA_ROBUST_PLAIN;
+    if (mode != MCA_ROBUST_PLAIN && mca_robust_config_check(rc) != MCA_OK) {
+        return MCA_ERR_BAD_CONFIG;
     }
     const int uses_memory = mode == MCA_ROBUST_AKF || mode == MCA_ROBUST_FUZZY;
     if (uses_memory) {

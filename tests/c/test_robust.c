@@ -500,12 +500,22 @@ static void test_bad_input_leaves_state_in_every_mode(void)
         mca_robust_config_t bad = rc;
         bad.mode = 5u;
         CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &bad, &rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_CONFIG);
+        /* a field out of range: refused by every mode but plain, which reads no other field
+         * (and then makes the update: undone) */
+        const int plain = k_modes[mi] == MCA_ROBUST_PLAIN;
         bad = rc;
         bad.igg_k1 = bad.igg_k0;
-        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &bad, &rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_CONFIG);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &bad, &rs, g_ws, WS_MAX, &rep),
+                     plain ? MCA_OK : MCA_ERR_BAD_CONFIG);
         bad = rc;
         bad.akf_window = MCA_AKF_WINDOW + 1u;
-        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &bad, &rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_CONFIG);
+        CHECK_EQ_INT(mca_kf_update(x, p, N, h, z, r, M, &bad, &rs, g_ws, WS_MAX, &rep),
+                     plain ? MCA_OK : MCA_ERR_BAD_CONFIG);
+        if (plain) {
+            memcpy(x, x0, sizeof(x));
+            memcpy(p, p0, sizeof(p));
+            memcpy(&rs, &rs0, sizeof(rs));
+        }
         /* a corrupt memory, in the modes that read it */
         if (needs_rs) {
             mca_robust_state_t bad_rs = rs;

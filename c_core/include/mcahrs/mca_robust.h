@@ -169,6 +169,7 @@ size_t mca_kf_ws_len(size_t n, size_t m);
  * @param[in]     r      measurement covariance, m x m, symmetric positive definite
  * @param[in]     m      measurement size, 1..MCA_MEAS_MAX
  * @param[in]     rc     robust configuration (NULL: plain); checked with mca_robust_config_check
+ *                       unless its mode is plain, which reads no other field
  * @param[in,out] rs     robust memory; required (non-NULL) by AKF and fuzzy, ignored (may be
  *                       NULL) by plain, FTA and IGG-III
  * @param[out]    ws     scratch, at least MCA_KF_WS_LEN(n, m) floats, not aliasing x, p, h, z, r
@@ -177,7 +178,7 @@ size_t mca_kf_ws_len(size_t n, size_t m);
  * @return MCA_OK; MCA_ERR_NULL (x, p, h, z, r, ws, or rs when the mode needs it);
  *         MCA_ERR_BAD_ARG (n, m or ws_len out of range, or an rs that mca_robust_state_init and
  *         this function cannot have produced: counters out of range, non-finite or negative
- *         statistics); MCA_ERR_BAD_CONFIG (rc out of range); MCA_ERR_NONFINITE (x, p, h, z or
+ *         statistics); MCA_ERR_BAD_CONFIG (rc out of range, a mode other than plain); MCA_ERR_NONFINITE (x, p, h, z or
  *         r not finite, a non-finite T in a robust mode, or a non-finite result);
  *         MCA_ERR_SINGULAR (H P H^T + R, or the mode's modified gain covariance, not
  *         positive definite).
