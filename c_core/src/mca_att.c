@@ -153,9 +153,13 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
      * (q_d^-1 (x) q)^-1 = q^-1 (x) q_d: no 3 x 3 matrix. */
     float h[2u * MCA_ATT_NX], dx[MCA_ATT_NX], rm[4];
     const float *q = att->q_nb;
-    const float q_inv[4] = {q[0], -q[1], -q[2], -q[3]};
     float q_back[4];
-    mca_quat_mul(q_back, q_inv, q_d);
+    /* q^-1 in dx, free until it is zeroed below (16 B less on the deepest stack path) */
+    dx[0] = q[0];
+    dx[1] = -q[1];
+    dx[2] = -q[2];
+    dx[3] = -q[3];
+    mca_quat_mul(q_back, dx, q_d);
     /* every entry written (no memset calls): the rows see no gyro bias, R is r I */
     for (size_t k = 0; k < m; ++k) {
         mca_quat_rotate(&h[k * MCA_ATT_NX], q_back, &e_rows[k * 3u]);

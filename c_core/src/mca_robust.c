@@ -364,7 +364,7 @@ static void plan_igg(mca_plan_t *pl, const mca_robust_config_t *rc, size_t m, co
  *
  * The update's scratch (MCA_KF_WS_LEN(n, m) floats), block by block: pn (n x n): P+ being
  * built; kk (n x m): P H^T, then K in place (the row path: u); a (n x m): U = P H^T for the
- * Joseph step (the row path: k); b (n x m): K S; t (n x m): C^-1 nu, then the per-row R
+ * Joseph step; b (n x m): K S; t (n x m): C^-1 nu, then the per-row R
  * increments d (m); c, l (m x m): C and its factor; xn (n): x+; y (m): nu; ct, lt (m x m): the
  * test covariance (IGG-III re-weights it) and its factor. Every m-vector fits in t (n >= 1).
  * update_general and apply carve it block after block; the row path reaches its blocks by
@@ -494,9 +494,19 @@ static int refactor_needed(const mca_plan_t *pl, size_t m)
  * symmetrised, finite check, then x and p written. c holds C (for IGG already with d on its
  * diagonal: c_has_d), l its Cholesky factor, kk P H^T, t the increments d, y nu. */
 static mca_status_t apply(float *x, float *p, size_t n, const float *h, const float *r, size_t m,
-                          const mca_plan_t *pl, float *a, float *b, float *pn, float *kk, float *t, float *c,
-                          float *l, float *xn, const float *y, int refactor, int c_has_d)
+                          const mca_plan_t *pl, float *ws, int refactor, int c_has_d)
 {
+    /* the scratch blocks (layout above), carved here rather than passed: 14 pointer arguments
+     * on the stack were 56 B of update_general's frame, on the deepest stack path */
+    float *pn = ws;
+    float *kk = pn + n * n;
+    float *a = kk + n * m;
+    float *b = a + n * m;
+    float *t = b + n * m;
+    float *c = t + n * m;
+    float *l = c + m * m;
+    float *xn = l + m * m;
+    const float *y = xn + n;
     const float *d = t;
     size_t mk = m;
     if (refactor) {
@@ -1019,8 +1029,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     } else if (!state_finite(x, p, n)) {
         return MCA_ERR_NONFINITE; /* nothing is committed from a non-finite state */
     } else if (!pl.rejected) {
-        const mca_status_t st = apply(x, p, n, h, r, m, &pl, a, b, pn, kk, t, c, l, xn, y,
-                                      refactor_needed(&pl, m), c_has_d);
+        const mca_status_t st = apply(x, p, n, h, r, m, &pl, ws, refactor_needed(&pl, m), c_has_d);
         if (st != MCA_OK) {
             return st;
         }
