@@ -216,10 +216,10 @@ static void a3_rows(float *p, float t, float f13, float f23, float e)
     }
 }
 
-/* columns 0..2 of every row of P <- times A3^T */
+/* columns 0..2 of rows 0..2 of P <- times A3^T (rows 3, 4 there are below the diagonal) */
 static void a3_cols(float *p, float t, float f13, float f23, float e)
 {
-    for (size_t i = 0; i < 5u; ++i) {
+    for (size_t i = 0; i < 3u; ++i) {
         float *r = &p[5u * i];
         const float x0 = r[0], x1 = r[1], x2 = r[2];
         r[0] = x0 + t * x1 + f13 * x2;
@@ -268,9 +268,9 @@ static void axis_aid(mca_cs_axis_t *ax, float t, const float phi[25], const floa
 
 /* Predict with a T already validated, Phi and Q1 of mca_cs_transition(&ax->cfg, t, 1), and
  * s2 = mca_cs_maneuver_var(&ax->cfg, ax->x[2]): the Singer block of Q is s2 times that of Q1
- * (the Gauss-Markov entries do not depend on s2), so axes of one configuration share Phi, Q1. Phi is block diagonal, [[A3, 0], [0,
- * diag(eb, eg)]], so Phi P Phi^T is done in place by rows then columns (~80 multiplies
- * instead of 250). */
+ * (the Gauss-Markov entries do not depend on s2), so axes of one configuration share Phi, Q1.
+ * Phi is block diagonal, [[A3, 0], [0, diag(eb, eg)]], so Phi P Phi^T is done in place by rows
+ * then columns on the upper triangle and mirrored (~50 multiplies instead of 250). */
 static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float phi[25], const float q1[25],
                               const mca_cs_inc_t *inc)
 {
@@ -284,27 +284,29 @@ static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float 
     ax->x[1] += t * a;
     ax->x[3] *= phi[18];
     ax->x[4] *= phi[24];
-    /* covariance: Phi P Phi^T + Q */
+    /* covariance: Phi P Phi^T + Q on the upper triangle, D = diag(exp(-beta T), exp(-gamma T)):
+     * [[A3 P33 A3^T, A3 P3e D], [., D Pee D]] */
     float *p = ax->p;
+    const float eb = phi[18], eg = phi[24];
     a3_rows(p, t, phi[2], phi[7], phi[12]);
     a3_cols(p, t, phi[2], phi[7], phi[12]);
-    for (size_t j = 0; j < 5u; ++j) { /* rows and columns 3, 4 scale by exp(-beta T), exp(-gamma T) */
-        p[15u + j] *= phi[18];
-        p[20u + j] *= phi[24];
-        p[5u * j + 3u] *= phi[18];
-        p[5u * j + 4u] *= phi[24];
+    for (size_t i = 0; i < 3u; ++i) {
+        p[5u * i + 3u] *= eb;
+        p[5u * i + 4u] *= eg;
     }
+    p[18] = p[18] * eb * eb; /* the products in the order of the full scaling (the same bits) */
+    p[19] = p[19] * eg * eb;
+    p[24] = p[24] * eg * eg;
     const float qs = ax->rs.q_scale; /* AKF (ALGORITHMS.md 5); 1 in the other modes */
     const float qa = qs * s2;
     for (size_t i = 0; i < 3u; ++i) {
-        for (size_t j = 0; j < 3u; ++j) {
+        for (size_t j = i; j < 3u; ++j) {
             p[5u * i + j] += qa * q1[5u * i + j];
         }
     }
     p[18] += qs * q1[18];
     p[24] += qs * q1[24];
-    /* Phi P Phi^T by rows then columns is symmetric up to rounding: the upper triangle (what the
-     * update reads) is mirrored, not averaged (a third of mca_mat_symmetrize's instructions) */
+    /* the upper triangle mirrored: P exactly symmetric (the update reads rows of it) */
     for (size_t i = 1; i < 5u; ++i) {
         for (size_t j = 0; j < i; ++j) {
             p[5u * i + j] = p[5u * j + i];
