@@ -66,15 +66,23 @@ void mca_mat_symmetrize(float *a, size_t n)
     }
 }
 
+/* Four floats as one object: a struct copy of it is one load-multiple and one store-multiple on
+ * the M4F. Reading floats through it is allowed (an aggregate with float members, C99 6.5p7). */
+typedef struct {
+    float v[4];
+} mca_f4_t;
+
 void mca_copyf(float *dst, const float *src, size_t n)
 {
-    if (n == 0u) {
-        return;
+    const float *const end4 = src + (n & ~(size_t)3u), *const end = src + n;
+    while (src != end4) {
+        *(mca_f4_t *)dst = *(const mca_f4_t *)src;
+        dst += 4;
+        src += 4;
     }
-    const float *const end = src + n;
-    do { /* do-while: -Os compiles it one branch shorter a value */
+    while (src != end) {
         *dst++ = *src++;
-    } while (src != end);
+    }
 }
 
 void mca_copy_bytes(void *dst, const void *src, size_t n)

@@ -856,9 +856,12 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     }
     /* Plain mode reads no other field of rc: the range check is for the modes that do (an
      * unknown mode is not plain, so it is refused there). */
-    const mca_robust_mode_t mode = rc != NULL ? (mca_robust_mode_t)rc->mode : MCA_ROBUST_PLAIN;
-    if (mode != MCA_ROBUST_PLAIN && mca_robust_config_check(rc) != MCA_OK) {
-        return MCA_ERR_BAD_CONFIG;
+    mca_robust_mode_t mode = MCA_ROBUST_PLAIN;
+    if (rc != NULL && rc->mode != (uint8_t)MCA_ROBUST_PLAIN) {
+        if (mca_robust_config_check(rc) != MCA_OK) {
+            return MCA_ERR_BAD_CONFIG;
+        }
+        mode = (mca_robust_mode_t)rc->mode;
     }
     const int uses_memory = mode == MCA_ROBUST_AKF || mode == MCA_ROBUST_FUZZY;
     if (uses_memory) {
