@@ -384,20 +384,24 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
     /* rows in mask order: 0 position (p + eps_p), 1 velocity (v + eps_v) */
     float h[MCA_CS_NZ * MCA_CS_NX];
     float z[MCA_CS_NZ], r[MCA_CS_NZ * MCA_CS_NZ];
+    const float zq[MCA_CS_NZ] = {z_p, z_v}, rq[MCA_CS_NZ] = {r_p, r_v};
     size_t rows[MCA_CS_NZ], m = 0u;
+    for (size_t i = 0; i < MCA_CS_NZ * MCA_CS_NX; ++i) { /* every entry written: no memset call */
+        h[i] = 0.0f;
+    }
+    for (size_t i = 0; i < MCA_CS_NZ * MCA_CS_NZ; ++i) {
+        r[i] = 0.0f;
+    }
     for (size_t q = 0; q < MCA_CS_NZ; ++q) {
         if ((mask & (1u << q)) != 0u) {
-            for (size_t j = 0; j < MCA_CS_NX; ++j) { /* every entry written: no memset call */
-                h[m * MCA_CS_NX + j] = (j == q || j == 3u + q) ? 1.0f : 0.0f;
-            }
-            z[m] = q == 0u ? z_p : z_v;
+            h[m * MCA_CS_NX + q] = 1.0f;
+            h[m * MCA_CS_NX + 3u + q] = 1.0f;
+            z[m] = zq[q];
             rows[m++] = q;
         }
     }
     for (size_t i = 0; i < m; ++i) {
-        for (size_t j = 0; j < m; ++j) {
-            r[i * m + j] = i != j ? 0.0f : rows[i] == 0u ? r_p : r_v;
-        }
+        r[i * m + i] = rq[rows[i]];
     }
     /* after an aided predict the mode tests z against the IMU-aided prediction, covariance s + R */
     const int aided = ax->aid.valid != 0u;
