@@ -280,10 +280,13 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
     if (fabsf(eul[1]) > att->cfg.max_tilt_obs_rad) {
         return MCA_ERR_BAD_ARG;
     }
-    float sp, cp;
-    mca_sincosf(eul[0], &sp, &cp);
-    const float ct = mca_cosf(eul[1]);
-    const float e_row[3] = {0.0f, sp / ct, cp / ct};
+    /* d psi / d(body error angles) = [0, sin(phi), cos(phi)] / cos(theta) = [0, c32, c33] /
+     * cos^2(theta) with c32 = sin(phi) cos(theta), c33 = cos(phi) cos(theta) from the last row of
+     * C_nb(q_d), cos^2(theta) = c32^2 + c33^2: the same row without trigonometry (ALGORITHMS.md 7) */
+    const float c32 = 2.0f * (q_d[0] * q_d[1] + q_d[2] * q_d[3]);
+    const float c33 = 1.0f - 2.0f * (q_d[1] * q_d[1] + q_d[2] * q_d[2]);
+    const float k = 1.0f / (c32 * c32 + c33 * c33);
+    const float e_row[3] = {0.0f, c32 * k, c33 * k};
     const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};
     return euler_update(att, e_row, 1u, nu, r, q_d, 0, 0, ws, rep);
 }
