@@ -619,7 +619,8 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
     const uint8_t vmask = fv->vel_mask;
     const float s_acc = fv->s_acc_mps;
     const float g2 = nav->g_mps2 * nav->g_mps2;
-    float acc[3] = {0.0f, 0.0f, 0.0f};
+    float *const acc = nav->acc_comp_n; /* built in place: no copy on the deepest stack path */
+    acc[0] = acc[1] = acc[2] = 0.0f;
     float r_acc = 0.0f;
     const int flagged = fix_flagged(nav, vmask);
     if (flagged) { /* the CS acceleration carries a fault it let in for about tau_a (GPS step 6) */
@@ -653,7 +654,6 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
     } else {
         e = hist_newest(nav);
     }
-    memcpy(nav->acc_comp_n, acc, sizeof(acc));
     if (nav->cfg.comp_mode != MCA_COMP_OFF) {
         /* a yaw error turns the horizontal compensation (ALGORITHMS.md 8, GPS step 5) */
         r_acc += (acc[0] * acc[0] + acc[1] * acc[1]) * nav->att.p[14] / g2;

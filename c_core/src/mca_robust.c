@@ -493,20 +493,18 @@ static int refactor_needed(const mca_plan_t *pl, size_t m)
  * (zero gain column for the others), x+ = x + K nu, Joseph with R_eff = R + diag(d),
  * symmetrised, finite check, then x and p written. c holds C (for IGG already with d on its
  * diagonal: c_has_d), l its Cholesky factor, kk P H^T, t the increments d, y nu. */
+/* The scratch blocks update_general carved (layout below) that apply works in, passed as one
+ * pointer rather than as 9 stack arguments. */
+typedef struct {
+    float *pn, *kk, *a, *b, *t, *c, *l, *xn;
+    const float *y;
+} mca_ws_blocks_t;
+
 static mca_status_t apply(float *x, float *p, size_t n, const float *h, const float *r, size_t m,
-                          const mca_plan_t *pl, float *ws, int refactor, int c_has_d)
+                          const mca_plan_t *pl, const mca_ws_blocks_t *w, int refactor, int c_has_d)
 {
-    /* the scratch blocks (layout above), carved here rather than passed: 14 pointer arguments
-     * on the stack were 56 B of update_general's frame, on the deepest stack path */
-    float *pn = ws;
-    float *kk = pn + n * n;
-    float *a = kk + n * m;
-    float *b = a + n * m;
-    float *t = b + n * m;
-    float *c = t + n * m;
-    float *l = c + m * m;
-    float *xn = l + m * m;
-    const float *y = xn + n;
+    float *pn = w->pn, *kk = w->kk, *a = w->a, *b = w->b, *t = w->t, *c = w->c, *l = w->l, *xn = w->xn;
+    const float *y = w->y;
     const float *d = t;
     size_t mk = m;
     if (refactor) {
@@ -1032,7 +1030,8 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     } else if (!state_finite(x, p, n)) {
         return MCA_ERR_NONFINITE; /* nothing is committed from a non-finite state */
     } else if (!pl.rejected) {
-        const mca_status_t st = apply(x, p, n, h, r, m, &pl, ws, refactor_needed(&pl, m), c_has_d);
+        const mca_ws_blocks_t wb = {pn, kk, a, b, t, c, l, xn, y};
+        const mca_status_t st = apply(x, p, n, h, r, m, &pl, &wb, refactor_needed(&pl, m), c_has_d);
         if (st != MCA_OK) {
             return st;
         }

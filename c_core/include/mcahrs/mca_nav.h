@@ -217,7 +217,7 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro_b_rps[3
  * Cost on the Cortex-M4F (-Os, scripts/fw_report.py): 12.0k instructions mean, 14.5k max
  * (12.2k mean at -O2): about two thirds the CS predict with the IMU-aided test prior and the
  * three axis updates, a fifth the roll/pitch update, the rest the course update, geodesy and
- * history look-ups (scripts/fw_profile.py); stack 952 B worst case (the steps keep no update
+ * history look-ups (scripts/fw_profile.py); stack 944 B worst case (the steps keep no update
  * report on the stack).
  * @return MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE,
  *         MCA_ERR_TIME_BACKWARDS (all unchanged), CS update errors, else MCA_OK.
