@@ -489,17 +489,17 @@ static int refactor_needed(const mca_plan_t *pl, size_t m)
     return pl->use_d || pl->gamma > 1.0f || pl->keep != (1u << m) - 1u;
 }
 
-/* Section-1 steps 4-6 with the plan: gain from C_eff = gamma (C + diag(d)) over the kept rows
- * (zero gain column for the others), x+ = x + K nu, Joseph with R_eff = R + diag(d),
- * symmetrised, finite check, then x and p written. c holds C (for IGG already with d on its
- * diagonal: c_has_d), l its Cholesky factor, kk P H^T, t the increments d, y nu. */
-/* The scratch blocks update_general carved (layout below) that apply works in, passed as one
+/* The scratch blocks update_general carved (layout above) that apply works in, passed as one
  * pointer rather than as 9 stack arguments. */
 typedef struct {
     float *pn, *kk, *a, *b, *t, *c, *l, *xn;
     const float *y;
 } mca_ws_blocks_t;
 
+/* Section-1 steps 4-6 with the plan: gain from C_eff = gamma (C + diag(d)) over the kept rows
+ * (zero gain column for the others), x+ = x + K nu, Joseph with R_eff = R + diag(d),
+ * symmetrised, finite check, then x and p written. c holds C (for IGG already with d on its
+ * diagonal: c_has_d), l its Cholesky factor, kk P H^T, t the increments d, y nu. */
 static mca_status_t apply(float *x, float *p, size_t n, const float *h, const float *r, size_t m,
                           const mca_plan_t *pl, const mca_ws_blocks_t *w, int refactor, int c_has_d)
 {
@@ -672,7 +672,7 @@ MCA_NOINLINE static float row_apply(const float *xs, const float *ps, float *xn,
  * solve: O(n^2) per row instead of O(n^2 m + n m^2) with an m x m Cholesky. The input P is
  * read as symmetric: its upper triangle and the rows h uses. keep: bit i
  * set, row i is applied; d: the R increments (NULL: none). Works in ws (general layout: pn, then
- * u, k in the kk, a blocks, xn in its own) and writes x, p only when every row's s is positive
+ * u in the kk block, xn in its own) and writes x, p only when every row's s is positive
  * and the result is finite. t_rows: the sum of the rows' nu_i^2 / s_i, which is
  * T = nu^T C^-1 nu (the s_i are the squared pivots of C's Cholesky factor, nu_i / sqrt(s_i)
  * its forward substitution of nu). */
@@ -705,10 +705,9 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
             }
             hx += hv * xs[l];
             const float *pl = &ps[l * n]; /* row l of the symmetric P is its column l */
-            size_t i = 0;
-            do { /* n >= 1; do-while: -Os compiles it one branch shorter */
+            for (size_t i = 0; i < n; ++i) {
                 u[i] += pl[i] * hv;
-            } while (++i < n);
+            }
         }
         float s = r[row * m + row] + (d != NULL ? d[row] : 0.0f);
         for (size_t l = 0; l < n; ++l) {
