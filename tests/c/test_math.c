@@ -1,4 +1,4 @@
-/* Host tests of mca_math: Cholesky, quaternions, Euler round trips. */
+/* Host tests of mca_math: Cholesky, quaternions, Euler round trips, the float copy. */
 #include <string.h>
 
 #include "mca_test.h"
@@ -81,9 +81,31 @@ static void test_quat(void)
     CHECK_CLOSE(mca_wrap_pi(-0.5f), -0.5f, 1e-7);
 }
 
+/* mca_copyf moves four floats a step, then the rest: every length 0..13 copies exactly n
+ * values (bit patterns, NaN included) and writes nothing past them. */
+static void test_copyf(void)
+{
+    float src[16], dst[16];
+    for (size_t i = 0; i < 16u; ++i) {
+        src[i] = (float)i - 3.5f;
+    }
+    src[5] = NAN;
+    for (size_t n = 0; n < 14u; ++n) {
+        for (size_t i = 0; i < 16u; ++i) {
+            dst[i] = 1000.0f;
+        }
+        mca_copyf(dst, src, n);
+        CHECK(memcmp(dst, src, n * sizeof(float)) == 0);
+        for (size_t i = n; i < 16u; ++i) {
+            CHECK(dst[i] == 1000.0f);
+        }
+    }
+}
+
 int main(void)
 {
     test_cholesky();
     test_quat();
+    test_copyf();
     TEST_MAIN_END();
 }
