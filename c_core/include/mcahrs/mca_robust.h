@@ -146,11 +146,11 @@ size_t mca_kf_ws_len(size_t n, size_t m);
  * for T; AKF adds O(m n + MCA_AKF_WINDOW) and one log2 (the core's own, ~15 flops, no libm);
  * IGG-III m^2 sqrtf; fuzzy O(1). A test innovation adds one m x m factor and solve (for
  * m <= 2, T in closed form from C_t's determinant). On the
- * Cortex-M4F (-Os, scripts/fw_report.py) a plain CS axis update (n = 5, m <= 2) is ~2.7k
+ * Cortex-M4F (-Os, scripts/fw_report.py) a plain CS axis update (n = 5, m <= 2) is ~2.5k
  * instructions (mca_cs3_update mean / 3), the roll/pitch update
  * (n = 6, m = 2) ~2k; scripts/fw_profile.py splits them by function. Stack: scalars and pointers
- * only, no arrays (72 bytes for the checks, then 264 for the general path or 88 + 80 for the
- * row path, in the Cortex-M4F firmware build).
+ * only, no arrays (72 bytes for the checks, then 264 for the general path or 88 for the row
+ * path, each with 88 + 32 for the row kernel, in the Cortex-M4F firmware build).
  * Touches only its arguments: x, p, rs (AKF and fuzzy only) and rep are written, ws is
  * scratch, everything else is read only.
  *
