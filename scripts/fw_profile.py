@@ -2,7 +2,7 @@
 """Per-function instruction profile of one core entry point on the emulated Cortex-M4F.
 
     python scripts/fw_profile.py [--entry mca_nav_gps] [--vector tests/vectors/nav_turns.mcav]
-                                 [--build build/fw] [--top 25]
+                                 [--build build/fw] [--top 25] [--lines F] [--exclude F]
 
 Runs the firmware replay image (``scripts/fw_report.py`` builds it) on ``qemu-system-arm -M
 mps2-an386 -icount shift=0`` with QEMU's translation and execution logs
@@ -15,7 +15,10 @@ the GPS step), if it is not recursive. It prints where the entry's instructions 
 by function (each function's own instructions), the way callgrind does on the host, but with the
 target's code (-Os Thumb-2, FPv4). ``--lines F`` splits function F's own instructions by source
 line; that needs a build with line tables (configure a copy with ``CFLAGS=-g``, which changes no
-instruction, and pass ``--build``).
+instruction, and pass ``--build``). ``--exclude F`` leaves out F's calls inside the entry,
+with everything they call (``--entry mca_nav_gps --exclude yaw_obs``: the GPS step without the
+course-over-ground update, the part the issue's <= 12,000 goal names). The first line gives the
+mean, min and max of the calls.
 
 It reports; it asserts nothing. Its per-call totals are comparable with fw_report.py's SysTick
 counts, which also include the call and its argument set-up; both count every executed
@@ -63,6 +66,11 @@ def main() -> int:
     ap.add_argument("--build", type=Path, default=ROOT / "build/fw", help="firmware build directory")
     ap.add_argument("--top", type=int, default=25, help="functions (or lines) to print")
     ap.add_argument("--lines", metavar="FUNCTION", help="split FUNCTION's own instructions by source line")
+    ap.add_argument(
+        "--exclude", metavar="FUNCTION",
+        help="leave out FUNCTION's calls (with all they call) inside the entry, e.g. --entry mca_nav_gps "
+        "--exclude yaw_obs: the GPS step without the course update",
+    )  # fmt: skip
     args = ap.parse_args()
 
     elf = args.build / "fw.elf"
@@ -72,8 +80,9 @@ def main() -> int:
     starts, names, sizes = symbols(elf)
     try:
         entry = starts[names.index(args.entry)]
+        excl = starts[names.index(args.exclude)] if args.exclude else -1
     except ValueError:
-        print(f"error: {args.entry} is not a function of {elf}", file=sys.stderr)
+        print(f"error: {args.entry} or {args.exclude} is not a function of {elf}", file=sys.stderr)
         return 2
 
     def func_at(pc: int) -> int:
@@ -99,6 +108,10 @@ def main() -> int:
     tb_pcs: dict[str, list[int]] = {}
     inside = False
     calls = 0
+    per_call: list[int] = []  # instructions of each call
+    excluding = False  # inside a call of --exclude (the entry's window rule, tail calls allowed for)
+    entry_func = func_at(entry)
+    excl_caller = -1
     caller = prev_func = -1
     for line in proc.stderr:
         if IN_RE.match(line):
@@ -121,14 +134,21 @@ def main() -> int:
         if pc == entry:
             if not inside:
                 calls += 1
+                per_call.append(0)
                 caller = prev_func  # the window ends when the caller runs again
             inside = True
         elif inside and f_now == caller:
             inside = False
+        if inside and pc == excl and not excluding:
+            excluding = True
+            excl_caller = prev_func
+        elif excluding and (f_now == excl_caller or f_now == entry_func):
+            excluding = False  # back in its caller, or in the entry (a tail call returns there)
         prev_func = f_now
-        if inside:
+        if inside and not excluding:
             f = f_now
             self_count[f] += n
+            per_call[-1] += n
             if f == line_func:
                 for a in tb_pcs.get(host, [pc]):
                     pc_count[a] += 1
@@ -140,8 +160,10 @@ def main() -> int:
         print(f"{args.entry} was never called by {args.vector.name}", file=sys.stderr)
         return 1
     total = sum(self_count.values())
-    print(f"{args.entry}: {calls} calls in {args.vector.name}, {total / calls:.0f} instructions per call "
-          f"(self, by function, per call; {elf})")  # fmt: skip
+    without = f" without {args.exclude}" if args.exclude else ""
+    spread = f"min {min(per_call)}, max {max(per_call)}"
+    print(f"{args.entry}{without}: {calls} calls in {args.vector.name}, {total / calls:.0f} instructions "
+          f"per call ({spread}; self, by function, per call; {elf})")  # fmt: skip
     print(f"  {'function':34s} {'per call':>9s} {'share':>7s}")
     for f, c in self_count.most_common(args.top):
         name = names[f] if f >= 0 else "?"
