@@ -141,6 +141,16 @@ static void correct(mca_att_t *att, const float dx[6])
     }
 }
 
+/* d = C_nb(q)^T e_down, the down direction in body axes: the last row of C_nb, straight from q,
+ * [-sin theta, sin phi cos theta, cos phi cos theta]. The roll/pitch residuals, the yaw row and
+ * the level-only correction all read it. */
+static void down_in_body(float d[3], const float q[4])
+{
+    d[0] = 2.0f * (q[1] * q[3] - q[0] * q[2]);
+    d[1] = 2.0f * (q[2] * q[3] + q[0] * q[1]);
+    d[2] = 1.0f - 2.0f * (q[1] * q[1] + q[2] * q[2]);
+}
+
 /* Update of the error state from zero with rows e (m x 3, at q_d), residual nu, diag R.
  * level_only: remove the vertical component of the attitude correction (ALGORITHMS.md 7,
  * roll/pitch step 7). */
@@ -179,9 +189,8 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
                                                  NULL, NULL, ws, MCA_ATT_WS_LEN, rep);
     if (st == MCA_OK) {
         if (level_only) {
-            /* u = C_nb^T e_down: the third row of C_nb, straight from q */
-            const float u[3] = {2.0f * (q[1] * q[3] - q[0] * q[2]), 2.0f * (q[2] * q[3] + q[0] * q[1]),
-                                1.0f - 2.0f * (q[1] * q[1] + q[2] * q[2])};
+            float u[3];
+            down_in_body(u, q);
             const float dot = u[0] * dx[0] + u[1] * dx[1] + u[2] * dx[2];
             for (size_t i = 0; i < 3u; ++i) {
                 dx[i] -= dot * u[i];
@@ -213,9 +222,8 @@ MCA_NOINLINE static mca_status_t gravity_measure(const mca_att_t *att, const flo
     /* Roll and pitch of q_d as the down axis in body axes, d = C_nb^T e_down = [-sin theta,
      * sin phi cos theta, cos phi cos theta]: s = sin theta, (dy, dz) = cos theta (sin phi,
      * cos phi). */
-    static const float e_down[3] = {0.0f, 0.0f, 1.0f};
     float d[3];
-    mca_quat_rotate(d, qd_inv, e_down);
+    down_in_body(d, q_d);
     const float dy = d[1], dz = d[2];
     float s = -d[0];
     s = s > 1.0f ? 1.0f : (s < -1.0f ? -1.0f : s);
@@ -283,10 +291,10 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
     /* d psi / d(body error angles) = [0, sin(phi), cos(phi)] / cos(theta) = [0, c32, c33] /
      * cos^2(theta) with c32 = sin(phi) cos(theta), c33 = cos(phi) cos(theta) from the last row of
      * C_nb(q_d), cos^2(theta) = c32^2 + c33^2: the same row without trigonometry (ALGORITHMS.md 7) */
-    const float c32 = 2.0f * (q_d[0] * q_d[1] + q_d[2] * q_d[3]);
-    const float c33 = 1.0f - 2.0f * (q_d[1] * q_d[1] + q_d[2] * q_d[2]);
-    const float k = 1.0f / (c32 * c32 + c33 * c33);
-    const float e_row[3] = {0.0f, c32 * k, c33 * k};
+    float d[3];
+    down_in_body(d, q_d); /* d[1] = c32, d[2] = c33 */
+    const float k = 1.0f / (d[1] * d[1] + d[2] * d[2]);
+    const float e_row[3] = {0.0f, d[1] * k, d[2] * k};
     const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};
     return euler_update(att, e_row, 1u, nu, r, q_d, 0, 0, ws, rep);
 }
