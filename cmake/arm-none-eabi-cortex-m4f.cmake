@@ -6,13 +6,16 @@
 # function and object in its own section so the linker can drop what nothing references
 # (--gc-sections), and with -fstack-usage (a .su file per object, read by
 # scripts/fw_report.py). Every executable gets a map file next to it (<elf>.map).
+# c_core/firmware/CMakeLists.txt adds link-time optimisation on top (MCA_FW_LTO).
 set(CMAKE_SYSTEM_NAME Generic)
 set(CMAKE_SYSTEM_PROCESSOR arm)
 
 set(CMAKE_C_COMPILER arm-none-eabi-gcc)
 set(CMAKE_ASM_COMPILER arm-none-eabi-gcc)
-set(CMAKE_AR arm-none-eabi-ar)
-set(CMAKE_RANLIB arm-none-eabi-ranlib)
+# gcc-ar/gcc-ranlib load the LTO plugin, so an archive of LTO objects gets a symbol index
+# (c_core/firmware links with -flto); on plain objects they are ar and ranlib.
+set(CMAKE_AR arm-none-eabi-gcc-ar)
+set(CMAKE_RANLIB arm-none-eabi-gcc-ranlib)
 set(CMAKE_OBJCOPY arm-none-eabi-objcopy)
 set(CMAKE_OBJDUMP arm-none-eabi-objdump)
 set(CMAKE_SIZE arm-none-eabi-size)

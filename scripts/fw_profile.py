@@ -9,7 +9,10 @@ mps2-an386 -icount shift=0`` with QEMU's translation and execution logs
 (``-d in_asm,exec,nochain``), streamed through a pipe, never written to disk. Each executed
 translation block is credited with its guest instruction count to the function that holds its
 address (``arm-none-eabi-nm``). Only blocks executed inside a call of ``--entry`` are counted:
-from its first instruction until a block of the function it was called from runs again. The
+from its first instruction until it returns, followed on a shadow call stack (a block at a
+function's first instruction, reached from another function, is a call; a block of a function
+further down the stack is a return to it, so a tail call, which returns to its caller's caller,
+ends where it should; the LTO firmware tail-calls ``yaw_obs``). The
 entry may be any function of the image, static ones included (``--entry gps_cs``: the CS part of
 the GPS step), if it is not recursive. It prints where the entry's instructions go, per call and
 by function (each function's own instructions), the way callgrind does on the host, but with the
@@ -106,13 +109,17 @@ def main() -> int:
         print(f"error: {args.lines} is not a function of {elf}", file=sys.stderr)
         return 2
     tb_pcs: dict[str, list[int]] = {}
-    inside = False
     calls = 0
     per_call: list[int] = []  # instructions of each call
-    excluding = False  # inside a call of --exclude (the entry's window rule, tail calls allowed for)
-    entry_func = func_at(entry)
-    excl_caller = -1
-    caller = prev_func = -1
+    # A shadow call stack of functions: a block at a function's first instruction entered from
+    # another function is a call (a tail call too: b.w to it); a block inside a function below
+    # the top, not at its start, is a return to it (tail-called code returns to its caller's
+    # caller). A call of --entry lasts while its frame is on the stack, and so does an
+    # excluded call of --exclude.
+    stack: list[int] = []
+    entry_depth = excl_depth = -1  # stack depth of the entry's / excluded call's frame, -1: none
+    entry_func, excl_func = func_at(entry), func_at(excl) if excl >= 0 else -1
+    prev_func = -1
     for line in proc.stderr:
         if IN_RE.match(line):
             pending = []
@@ -131,21 +138,26 @@ def main() -> int:
             pending = []
         n = tb_len.get(host, 1)
         f_now = func_at(pc)
-        if pc == entry:
-            if not inside:
-                calls += 1
-                per_call.append(0)
-                caller = prev_func  # the window ends when the caller runs again
-            inside = True
-        elif inside and f_now == caller:
-            inside = False
-        if inside and pc == excl and not excluding:
-            excluding = True
-            excl_caller = prev_func
-        elif excluding and (f_now == excl_caller or f_now == entry_func):
-            excluding = False  # back in its caller, or in the entry (a tail call returns there)
+        if f_now != prev_func:
+            if f_now >= 0 and pc == starts[f_now]:
+                stack.append(f_now)  # a call (or tail call) of f_now
+                if pc == entry and entry_depth < 0:
+                    entry_depth = len(stack) - 1
+                    calls += 1
+                    per_call.append(0)
+                elif pc == excl and entry_depth >= 0 and excl_depth < 0:
+                    excl_depth = len(stack) - 1
+            elif f_now in stack:
+                while stack[-1] != f_now:  # a return, through any tail-called frames
+                    stack.pop()
+            else:
+                stack = [f_now]  # code the stack has not seen enter (startup, replay)
+        if excl_depth >= len(stack) or (excl_depth >= 0 and stack[excl_depth] != excl_func):
+            excl_depth = -1
+        if entry_depth >= len(stack) or (entry_depth >= 0 and stack[entry_depth] != entry_func):
+            entry_depth = -1
         prev_func = f_now
-        if inside and not excluding:
+        if entry_depth >= 0 and excl_depth < 0:
             f = f_now
             self_count[f] += n
             per_call[-1] += n

@@ -51,14 +51,59 @@ def ok(value: float, goal: float) -> str:
 # ----------------------------------------------------------------------------- sizes from the map
 
 
+LTRANS_RE = re.compile(r"ltrans\d*\.ltrans\.o$")
+# .text.NAME, .text.unlikely.NAME, .rodata.NAME, ... and the suffixes of GCC's clones
+SECTION_SYM_RE = re.compile(r"^\.(?:text(?:\.unlikely|\.hot|\.startup)?|rodata|data|bss)\.(.+)$")
+CLONE_RE = re.compile(r"\.(?:lto_priv|constprop|isra|part|cold)(?:\.\d+)?")
+
+
+def lto_names(map_path: Path) -> dict[str, str]:
+    """symbol -> "core <file>" for the sections of an LTO-linked image, whose map names the link's
+    ltrans object as their origin: from the core archive's symbol tables (readelf: its fat
+    objects also carry the ordinary code, static symbols included) and, for a static name that
+    more than one file defines, the image's own .su lines (path:line:col:function)."""
+    build = map_path.parent
+    files: dict[str, set[str]] = defaultdict(set)
+    archive = build / "mcahrs_core" / "libmcahrs_core.a"
+    if archive.exists():
+        out = subprocess.run(
+            ["arm-none-eabi-readelf", "-sW", str(archive)], check=True, capture_output=True, text=True
+        ).stdout
+        member = None
+        for line in out.splitlines():
+            m = re.match(r"^File: .*\((.+?)\.obj\)$", line)
+            if m:
+                member = m.group(1)
+                continue
+            f = line.split()
+            if member and len(f) >= 8 and f[3] in ("FUNC", "OBJECT") and f[6] != "UND":
+                files[f[7]].add(member)
+    names = {n: f"core {next(iter(fs))}" for n, fs in files.items() if len(fs) == 1}
+    stem = map_path.name[: -len(".elf.map")] if map_path.name.endswith(".elf.map") else map_path.stem
+    for su in build.glob(f"{stem}.ltrans*.ltrans.su"):
+        for line in su.read_text().splitlines():
+            loc = line.split("\t")[0]
+            path, _, fn = loc.rpartition(":")
+            src = Path(path.split(":")[0]).name
+            base = CLONE_RE.sub("", fn)
+            if src.endswith(".c") and base not in names:
+                names[base] = f"core {src}"
+    return names
+
+
 def map_groups(map_path: Path, members: bool = False) -> dict[str, dict[str, int]]:
     """Bytes per object group (core file, libm, libc, libgcc, replay) and column (text, rodata,
-    data, bss), from the input-section lines of a GNU ld map."""
+    data, bss), from the input-section lines of a GNU ld map. In an LTO-linked image the core's
+    sections come from the link's ltrans object; they are put back to their source file by the
+    symbol each section holds (lto_names; one function or object a section, -ffunction-sections
+    -fdata-sections at the LTO link), "core (LTO)" where no symbol names the section (constant
+    pools)."""
     text = map_path.read_text()
     text = text[text.index("Linker script and memory map") :]
     flash_out = {".isr_vector", ".text", ".rodata", ".ARM.extab", ".ARM.exidx", ".init_array"}
     groups: dict[str, dict[str, int]] = defaultdict(lambda: defaultdict(int))
     out_sec, pending = None, None
+    lto_box: list[dict[str, str]] = []  # lto_names(map_path), read at the first ltrans section
 
     def add(in_sec: str, size: int, origin: str) -> None:
         if out_sec in flash_out:
@@ -69,6 +114,13 @@ def map_groups(map_path: Path, members: bool = False) -> dict[str, dict[str, int
             col = "bss"
         else:
             return  # .stack, debug and other non-loaded sections
+        if LTRANS_RE.search(origin):
+            if not lto_box:
+                lto_box.append(lto_names(map_path))
+            m = SECTION_SYM_RE.match(in_sec)
+            name = CLONE_RE.sub("", m.group(1)) if m else ""
+            groups[lto_box[0].get(name, "core (LTO)")][col] += size
+            return
         groups[member_of(origin) if members else group_of(origin)][col] += size
 
     for line in text.splitlines():
@@ -138,15 +190,26 @@ def print_groups(title: str, groups: dict[str, dict[str, int]]) -> int:
 # ----------------------------------------------------------------------------- stack
 
 
-def su_frames(build: Path) -> dict[str, tuple[int, str]]:
-    """function -> (bytes, qualifier) from the core's -fstack-usage files."""
-    frames = {}
-    for su in (build / "mcahrs_core").rglob("*.su"):
+def su_frames(build: Path, image: str, funcs: dict[str, list[tuple[str, str]]]) -> dict[str, tuple[int, str]]:
+    """function of the image -> (bytes, qualifier) from -fstack-usage: an LTO-linked image's own
+    .su (<image>.ltrans*.ltrans.su, the code its link generated), else the core objects'. An LTO
+    .su names a function without the number of its clone or LTO-private copy (align for
+    align.lto_priv.0): a name is paired with the image's function only when it is unique on both
+    sides; the others (a static name in two files) keep the frame read from the code."""
+    lto = sorted(build.glob(f"{image}.ltrans*.ltrans.su"))
+    files = lto or sorted((build / "mcahrs_core").rglob("*.su"))
+    entries: dict[str, list[tuple[int, str]]] = defaultdict(list)
+    for su in files:
         for line in su.read_text().splitlines():
             parts = line.split("\t")
             if len(parts) == 3:
-                frames[parts[0].rsplit(":", 1)[-1]] = (int(parts[1]), parts[2])
-    return frames
+                entries[parts[0].rsplit(":", 1)[-1]].append((int(parts[1]), parts[2]))
+    if not lto:
+        return {f: e[-1] for f, e in entries.items()}
+    by_key: dict[str, list[str]] = defaultdict(list)
+    for f in funcs:
+        by_key[re.sub(r"(\.lto_priv)?\.\d+$", "", f).removesuffix(".lto_priv")].append(f)
+    return {by_key[k][0]: e[0] for k, e in entries.items() if len(e) == 1 and len(by_key.get(k, ())) == 1}
 
 
 def disassemble(elf: Path) -> dict[str, list[tuple[str, str]]]:
@@ -417,6 +480,15 @@ def main(argv: list[str] | None = None) -> int:
             f"    core flash {flash_nav} B = {flash_nav / KIB:.1f} KiB   "
             f"goal <= 24 KiB: {ok(flash_nav, GOAL_FLASH)}"
         )
+        nolto = build / "mca_core_nav_nolto.elf.map"
+        if nolto.exists():
+            g = map_groups(nolto)
+            n = sum(c["text"] + c["rodata"] + c["data"] for c in g.values())
+            print(
+                f"    (linked with LTO: a file's figure holds what the link inlined into its functions. "
+                f"The same objects linked without LTO, their ordinary code: {n} B = {n / KIB:.1f} KiB, "
+                f"{n - flash_nav:+d} B)"
+            )
         mem = map_groups(Path(str(nav_elf) + ".map"), members=True)
         libs = sorted(((c["text"] + c["rodata"], g) for g, c in mem.items() if ":" in g), reverse=True)
         print("    largest library members: " + ", ".join(f"{g} {n}" for n, g in libs[:8]))
@@ -450,14 +522,22 @@ def main(argv: list[str] | None = None) -> int:
     # ---- 2. stack
     print(
         f"\n2. Stack per public function (bytes): static worst case = .su frames + call graph of "
-        f"{build.name}/mca_core_only.elf; painted = high-water measured in QEMU over all vectors"
+        f"{build.name}/mca_core_only.elf; fw.elf = the same for the replay image's own code (its link "
+        "inlines differently); painted = high-water measured in QEMU over all vectors"
     )
-    su = su_frames(build)
     funcs = disassemble(build / "mca_core_only.elf")
+    su = su_frames(build, "mca_core_only", funcs)
     frames = {f: su[f][0] if f in su else frame_from_code(ins) for f, ins in funcs.items()}
     mism = [f for f in su if f in funcs and frame_from_code(funcs[f]) != su[f][0]]
     dyn = [f for f, (_, q) in su.items() if q != "static"]
     edges, indirect = call_graph(funcs)
+    # The replay image fw.elf, whose stack QEMU paints: linked with LTO, its code for an entry
+    # point is not the core-alone image's (the inliner sees other callers), so the painted
+    # high-water is checked against the static worst case of fw.elf's own code.
+    funcs_fw = disassemble(elf)
+    su_fw = su_frames(build, "fw", funcs_fw)
+    frames_fw = {f: su_fw[f][0] if f in su_fw else frame_from_code(ins) for f, ins in funcs_fw.items()}
+    edges_fw, _ = call_graph(funcs_fw)
     painted = defaultdict(int)
     for costs, _, _ in runs.values():
         for ep, stk in zip(costs.calls["id"], costs.calls["b"], strict=True):
@@ -465,7 +545,7 @@ def main(argv: list[str] | None = None) -> int:
     pub = public_functions(build / "mcahrs_core" / "libmcahrs_core.a")
     pub.sort(key=lambda f: (not f.startswith("mca_nav_"), f))
     print(
-        f"  {'function':28s} {'static':>6s} {'painted':>7s}  goal <= 1 KiB   "
+        f"  {'function':28s} {'static':>6s} {'fw.elf':>6s} {'painted':>7s}  goal <= 1 KiB   "
         "deepest chain (function frame, ...)"
     )
     worst_static = 0
@@ -475,20 +555,26 @@ def main(argv: list[str] | None = None) -> int:
         depth, path, cyc = worst_stack(f, frames, edges)
         worst_static = max(worst_static, depth)
         p = painted.get(f[len("mca_") :], None)
+        in_fw = worst_stack(f, frames_fw, edges_fw)[0] if p is not None and f in funcs_fw else None
+        worst_static = max(worst_static, in_fw or 0)
         flag = " RECURSION" if cyc else ""
         flag += " INDIRECT CALL" if set(path) & indirect else ""
         chain = " > ".join(f"{x.replace('mca_', '')} {frames.get(x, 0)}" for x in path[:5])
         chain += " > ..." if len(path) > 5 else ""
-        print(f"  {f:28s} {depth:6d} {'' if p is None else p:>7}  {ok(depth, GOAL_STACK):13s}  {chain}{flag}")
+        goal = ok(max(depth, in_fw or 0), GOAL_STACK)
+        fw_txt = "" if in_fw is None else in_fw
+        print(f"  {f:28s} {depth:6d} {fw_txt:>6} {'' if p is None else p:>7}  {goal:13s}  {chain}{flag}")
     painted_ok = all(
-        painted[e] <= worst_stack("mca_" + e, frames, edges)[0] for e in painted if "mca_" + e in funcs
+        painted[e] <= worst_stack("mca_" + e, frames_fw, edges_fw)[0]
+        for e in painted
+        if "mca_" + e in funcs_fw
     )
     mism_txt = ", ".join(f"{f} {su[f][0]}/{frame_from_code(funcs[f])}" for f in mism[:4])
     print(
         f"  cross-checks: .su frame vs frame read from the code (.su/code) differ for {len(mism)} of "
         f"{len(su)} core functions{': ' + mism_txt if mism else ''}; non-static .su entries: "
         f"{dyn or 'none'}; indirect calls: "
-        f"{sorted(indirect) or 'none'}. Painted <= static for every measured entry point: "
+        f"{sorted(indirect) or 'none'}. Painted <= static (fw.elf) for every measured entry point: "
         f"{painted_ok}"
     )
 
@@ -544,7 +630,7 @@ def main(argv: list[str] | None = None) -> int:
         print("  (no navigation calls in the vectors)")
 
     # ---- 4b. the INS beside the navigation filter
-    ins_vs_nav(args, build, meta, samples, painted, frames, edges, np.concatenate(ins_applied))
+    ins_vs_nav(args, build, meta, samples, painted, frames_fw, edges_fw, np.concatenate(ins_applied))
 
     # ---- 5. host vs QEMU
     print(
