@@ -171,6 +171,8 @@ def main() -> int:
     if calls == 0:
         print(f"{args.entry} was never called by {args.vector.name}", file=sys.stderr)
         return 1
+    if __import__("os").environ.get("FWP_CALLS"):
+        print("per call:", per_call)
     total = sum(self_count.values())
     without = f" without {args.exclude}" if args.exclude else ""
     spread = f"min {min(per_call)}, max {max(per_call)}"

@@ -371,8 +371,10 @@ static mca_status_t check_update(float z_p, float z_v, float r_p, float r_v, uin
     return MCA_OK;
 }
 
-mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r_p, float r_v,
-                                uint8_t mask, float *ws, mca_update_report_t *rep)
+/* mca_cs_axis_update; with gains (plain mode, no report) through mca_kf_update_plain, which
+ * also returns the rows' gains. */
+MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r_p, float r_v,
+                                             uint8_t mask, float *ws, mca_update_report_t *rep, float *gains)
 {
     if (ax == NULL || ws == NULL) {
         return MCA_ERR_NULL;
@@ -412,12 +414,21 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
             c_t[i * m + j] = ax->aid.s[rows[i] * MCA_CS_NZ + rows[j]] + r[i * m + j];
         }
     }
-    const mca_status_t su = mca_kf_update_tested(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs,
-                                                 aided ? nu_t : NULL, aided ? c_t : NULL, ws, MCA_CS_WS_LEN, rep);
+    const mca_status_t su =
+        gains != NULL ? mca_kf_update_plain(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->rs, aided ? nu_t : NULL,
+                                            aided ? c_t : NULL, ws, MCA_CS_WS_LEN, gains)
+                      : mca_kf_update_tested(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs,
+                                             aided ? nu_t : NULL, aided ? c_t : NULL, ws, MCA_CS_WS_LEN, rep);
     if (su == MCA_OK) {
         ax->aid.valid = 0u;
     }
     return su;
+}
+
+mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r_p, float r_v,
+                                uint8_t mask, float *ws, mca_update_report_t *rep)
+{
+    return axis_update(ax, z_p, z_v, r_p, r_v, mask, ws, rep, NULL);
 }
 
 MCA_COLD mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
@@ -481,6 +492,87 @@ mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t)
     return mca_cs3_predict_aided(cs, t, NULL);
 }
 
+/* Bit equality of two float arrays (a -0 and a +0 differ, as they may in what follows). */
+static int same_bits(const float *a, const float *b, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t ua, ub;
+        memcpy(&ua, &a[i], sizeof ua);
+        memcpy(&ub, &b[i], sizeof ub);
+        if (ua != ub) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* Bit equality of two axes' covariances, read on the upper triangle: every writer of an axis'
+ * P (init, predict, the updates) leaves it exactly symmetric. */
+static int same_cov(const float *a, const float *b)
+{
+    for (size_t i = 0; i < MCA_CS_NX; ++i) {
+        if (!same_bits(&a[i * MCA_CS_NX + i], &b[i * MCA_CS_NX + i], MCA_CS_NX - i)) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* The E axis of mca_cs3_update when its P had the same bits as N's before N's update, with the
+ * same mask and R, both plain: N's update left the covariance (p_post) and the gains (gains,
+ * mca_kf_update_plain) that E's own update would compute, so E applies the gains to its
+ * state row by row (nu from the state the previous row left, as the row update does) and takes
+ * p_post: x, P and T are the bits mca_cs_axis_update gives. 1 when done; 0 (nothing changed)
+ * when the result or T is not finite or the test statistic refuses C_t: the caller then runs
+ * the ordinary update, which reports it. */
+MCA_NOINLINE static int axis_update_shared(mca_cs_axis_t *ax, const float p_post[MCA_CS_NX * MCA_CS_NX],
+                                           const float *gains, float z_p, float z_v, float r_p, float r_v,
+                                           uint8_t mask, float *ws)
+{
+    const float zq[MCA_CS_NZ] = {z_p, z_v}, rq[MCA_CS_NZ] = {r_p, r_v};
+    float x[MCA_CS_NX], nu_t[MCA_CS_NZ], c_t[MCA_CS_NZ * MCA_CS_NZ];
+    float t_stat = 0.0f, fin = 0.0f;
+    size_t m = 0u, rows[MCA_CS_NZ];
+    mca_copyf(x, ax->x, MCA_CS_NX);
+    for (size_t q = 0; q < MCA_CS_NZ; ++q) {
+        if ((mask & (1u << q)) == 0u) {
+            continue;
+        }
+        const float *g = &gains[m * (MCA_CS_NX + 1u)];
+        const float nu = zq[q] - ((0.0f + x[q]) + x[3u + q]); /* h x, summed as the row update */
+        t_stat += nu * (nu * g[MCA_CS_NX]);
+        for (size_t i = 0; i < MCA_CS_NX; ++i) {
+            x[i] = x[i] + g[i] * nu;
+            fin += x[i] * 0.0f;
+        }
+        rows[m++] = q;
+    }
+    if (ax->aid.valid != 0u) { /* the tested T, formed as mca_cs_axis_update forms it */
+        for (size_t i = 0; i < m; ++i) {
+            nu_t[i] = zq[rows[i]] - ax->aid.y[rows[i]];
+            for (size_t j = 0; j < m; ++j) {
+                c_t[i * m + j] = ax->aid.s[rows[i] * MCA_CS_NZ + rows[j]] + (i == j ? rq[rows[i]] : 0.0f);
+            }
+        }
+        if (mca_kf_test_stat(nu_t, c_t, m, ws, &t_stat) != MCA_OK) {
+            return 0;
+        }
+    }
+    if (!isfinite(fin) || !isfinite(t_stat)) {
+        return 0;
+    }
+    mca_copyf(ax->x, x, MCA_CS_NX);
+    mca_copyf(ax->p, p_post, MCA_CS_NX * MCA_CS_NX);
+    ax->rs.n_reject = 0u; /* the memory as a plain update leaves it */
+    for (size_t i = 0; i < m; ++i) {
+        ax->rs.n_removed[i] = 0u;
+    }
+    ax->rs.t_stat = t_stat;
+    ax->rs.detected = 0u;
+    ax->aid.valid = 0u;
+    return 1;
+}
+
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
                             const float r_vel[3], const uint8_t mask[3], float *ws, mca_update_report_t rep[3])
 {
@@ -502,18 +594,34 @@ mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3
      * R > 0 (checked above), so an update can fail now only by float overflow, which leaves
      * that axis unchanged (mca_kf_update is atomic). */
     mca_status_t result = MCA_OK;
-    for (size_t i = 0; i < 3u; ++i) {
-        if (mask[i] == 0u) {
-            if (rep != NULL) {
+    if (rep != NULL) {
+        for (size_t i = 0; i < 3u; ++i) {
+            mca_status_t st = MCA_OK;
+            if (mask[i] == 0u) {
                 memset(&rep[i], 0, sizeof(rep[i]));
+            } else {
+                st = axis_update(&cs->axis[i], pos[i], vel[i], r_pos[i], r_vel[i], mask[i], ws, &rep[i], NULL);
             }
+            result = result == MCA_OK ? st : result;
+        }
+        return result;
+    }
+    /* No reports: N and E share one covariance update when they can (axis_update_shared); in
+     * fixed mode their P stay the same bits while both take every fix plainly. */
+    const mca_cs_axis_t *an = &cs->axis[0], *ae = &cs->axis[1];
+    const int share = mask[0] != 0u && mask[0] == mask[1] && an->cfg.robust.mode == (uint8_t)MCA_ROBUST_PLAIN &&
+                      ae->cfg.robust.mode == (uint8_t)MCA_ROBUST_PLAIN && same_bits(&r_pos[0], &r_pos[1], 1u) &&
+                      same_bits(&r_vel[0], &r_vel[1], 1u) && same_cov(an->p, ae->p);
+    float *const gains = ws + MCA_KF_WS_LEN(MCA_CS_NX, MCA_CS_NZ); /* N's rows, for E: past the update's scratch */
+    for (size_t i = 0; i < 3u; ++i) {
+        if (mask[i] == 0u || (i == 1u && share && result == MCA_OK &&
+                              axis_update_shared(&cs->axis[1], cs->axis[0].p, gains, pos[1], vel[1], r_pos[1],
+                                                 r_vel[1], mask[1], ws))) {
             continue;
         }
-        const mca_status_t st = mca_cs_axis_update(&cs->axis[i], pos[i], vel[i], r_pos[i], r_vel[i], mask[i],
-                                                   ws, rep != NULL ? &rep[i] : NULL);
-        if (st != MCA_OK && result == MCA_OK) {
-            result = st;
-        }
+        const mca_status_t st = axis_update(&cs->axis[i], pos[i], vel[i], r_pos[i], r_vel[i], mask[i], ws, NULL,
+                                            (i == 0u && share) ? gains : NULL);
+        result = result == MCA_OK ? st : result;
     }
     return result;
 }

@@ -402,7 +402,7 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
 
 /* CS predict over t to the fix at t_fix, IMU-aided on the axes where that is possible
  * (ALGORITHMS.md 8, GPS step 3). */
-static mca_status_t cs_predict(mca_nav_t *nav, uint64_t t_fix, float t)
+MCA_NOINLINE static mca_status_t cs_predict(mca_nav_t *nav, uint64_t t_fix, float t)
 {
     mca_cs_inc_t inc[3];
     const mca_cs_inc_t *use[3] = {NULL, NULL, NULL};
@@ -570,20 +570,15 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
                              (uint8_t)(((fv->has_alt != 0u && fix->fix_type >= 3u) ? MCA_CS_POS : 0u) |
                                        (has_vd ? MCA_CS_VEL : 0u))};
     const float rp[3] = {h_acc * h_acc, h_acc * h_acc, v_acc * v_acc};
-    const float rv = s_acc * s_acc;
-    /* Axis by axis, no report (T is read from the axis memory). Every input was checked
-     * above and the masks are well formed, so an axis can fail only numerically, and
-     * then it is left unchanged (mca_cs_axis_update is atomic). */
+    const float rv[3] = {s_acc * s_acc, s_acc * s_acc, s_acc * s_acc};
+    /* No report (T is read from the axis memory; N and E can then share one covariance
+     * update). Every input was checked above and the masks are well formed, so an axis can
+     * fail only numerically, and then it is left unchanged (mca_cs_axis_update is atomic) and
+     * keeps its T. */
+    st = mca_cs3_update(&nav->cs, ned, fv->vel_ned_mps, rp, rv, mask, nav->ws, NULL);
     for (size_t i = 0; i < 3u; ++i) {
-        if (mask[i] == 0u) {
-            continue;
-        }
-        const mca_status_t su =
-            mca_cs_axis_update(&nav->cs.axis[i], ned[i], fv->vel_ned_mps[i], rp[i], rv, mask[i], nav->ws, NULL);
-        if (su == MCA_OK) {
-            nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat;
-        } else if (st == MCA_OK) {
-            st = su;
+        if (mask[i] != 0u) {
+            nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat; /* NaN until an update succeeds */
         }
     }
     return st;
@@ -677,6 +672,18 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
     }
 }
 
+/* CS filter (re)started at a fix (GPS steps 2 and 3), no compensation acceleration. Its memories'
+ * T start NaN, "no update yet": gps_cs reports an axis' memory T, which only a successful
+ * update writes (a numerically failed one leaves the axis, and so its T, unchanged). */
+static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
+{
+    (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel);
+    memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
+    for (size_t i = 0; i < 3u; ++i) {
+        nav->cs.axis[i].rs.t_stat = NAN;
+    }
+}
+
 mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
 {
     if (nav == NULL || fix == NULL) {
@@ -699,15 +706,13 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             const float lat = (float)fix->lat_e7 * 1.74532925199433e-9f;
             nav->g_mps2 = mca_geo_gravity(lat, (float)nav->home.alt_mm * 1e-3f);
         }
-        (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, NULL, fv.vel_ned_mps);
-        memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
+        cs_start(nav, NULL, fv.vel_ned_mps);
     } else {
         float ned[3];
         (void)mca_geo_to_ned(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : nav->home.alt_mm, ned);
         const float t = span_s(nav->t_lastfix_us, fix->t_us);
         if (t > nav->cfg.cs_h.dt_max_s || t > nav->cfg.cs_v.dt_max_s) {
-            (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, fv.vel_ned_mps);
-            memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
+            cs_start(nav, ned, fv.vel_ned_mps);
         } else {
             const mca_status_t st = gps_cs(nav, fix, &fv, ned, t);
             if (st != MCA_OK) {

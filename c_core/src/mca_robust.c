@@ -678,7 +678,7 @@ MCA_NOINLINE static float row_apply(const float *xs, const float *ps, float *xn,
  * its forward substitution of nu). */
 MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const float *h, const float *z,
                                             const float *r, size_t m, unsigned keep, const float *d, float *ws,
-                                            float *t_rows)
+                                            float *t_rows, float *gains)
 {
     float *pn = ws;
     float *u = pn + n * n;
@@ -721,6 +721,13 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
         }
         const float inv = 1.0f / s, nu = z[row] - hx;
         t_sum += nu * (nu * inv);
+        if (gains != NULL) { /* row_apply's gain, the same product */
+            for (size_t i = 0; i < n; ++i) {
+                gains[i] = u[i] * inv;
+            }
+            gains[n] = inv;
+            gains += n + 1u;
+        }
         fin += row_apply(xs, ps, xn, pn, u, n, inv, nu);
         xs = xn;
         ps = pn;
@@ -781,12 +788,23 @@ static mca_status_t test_stat(const float *nu_t, const float *c_t, float *ct, fl
     return MCA_OK;
 }
 
+mca_status_t mca_kf_test_stat(const float *nu_t, const float *c_t, size_t m, float *ws, float *t_stat)
+{
+    if (nu_t == NULL || c_t == NULL || ws == NULL || t_stat == NULL) {
+        return MCA_ERR_NULL;
+    }
+    if (m == 0u || m > MCA_MEAS_MAX) {
+        return MCA_ERR_BAD_ARG;
+    }
+    return test_stat(nu_t, c_t, ws, ws + m * m, ws + 2u * m * m, m, t_stat);
+}
+
 /* Plain mode, diagonal R, no report: the rows one by one (apply_rows), T from them or from the
  * test innovation, and the memory's counters as the general path leaves them in plain mode.
  * ws in the general layout. */
 MCA_NOINLINE static mca_status_t update_plain_rows(float *x, float *p, size_t n, const float *h, const float *z,
                                                    const float *r, size_t m, mca_robust_state_t *rs,
-                                                   const float *nu_t, const float *c_t, float *ws)
+                                                   const float *nu_t, const float *c_t, float *ws, float *gains)
 {
     float *ct = ws + WS_CT(n, m);
     float t_stat = 0.0f;
@@ -804,7 +822,7 @@ MCA_NOINLINE static mca_status_t update_plain_rows(float *x, float *p, size_t n,
         }
     }
     float t_rows;
-    const mca_status_t st = apply_rows(x, p, n, h, z, r, m, (1u << m) - 1u, NULL, ws, &t_rows);
+    const mca_status_t st = apply_rows(x, p, n, h, z, r, m, (1u << m) - 1u, NULL, ws, &t_rows, gains);
     if (st != MCA_OK) {
         return st;
     }
@@ -830,6 +848,20 @@ mca_status_t mca_kf_update(float *x, float *p, size_t n, const float *h, const f
                            mca_update_report_t *rep)
 {
     return mca_kf_update_tested(x, p, n, h, z, r, m, rc, rs, NULL, NULL, ws, ws_len, rep);
+}
+
+mca_status_t mca_kf_update_plain(float *x, float *p, size_t n, const float *h, const float *z, const float *r,
+                                 size_t m, mca_robust_state_t *rs, const float *nu_t, const float *c_t, float *ws,
+                                 size_t ws_len, float *gains)
+{
+    if (x == NULL || p == NULL || h == NULL || z == NULL || r == NULL || ws == NULL || gains == NULL ||
+        (nu_t != NULL && c_t == NULL)) {
+        return MCA_ERR_NULL;
+    }
+    if (m == 0u || m > MCA_MEAS_MAX || n == 0u || ws_len < (size_t)MCA_KF_WS_LEN(n, m) || !r_diagonal(r, m)) {
+        return MCA_ERR_BAD_ARG;
+    }
+    return update_plain_rows(x, p, n, h, z, r, m, rs, nu_t, c_t, ws, gains);
 }
 
 /* Every mode, any R: nominal nu and C, the mode's plan on T (or the test's), the lock-up
@@ -880,7 +912,7 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
         return MCA_ERR_NONFINITE;
     }
     if (plain_rows) {
-        return update_plain_rows(x, p, n, h, z, r, m, rs, nu_t, c_t, ws);
+        return update_plain_rows(x, p, n, h, z, r, m, rs, nu_t, c_t, ws, NULL);
     }
     /* the general path checks z, R and H here; x and P before the joint update, a rejection,
      * or a SINGULAR status (which a non-finite P causes), else through the row-by-row result */
@@ -1022,7 +1054,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     if (!pl.rejected && !(pl.gamma > 1.0f) && r_diagonal(r, m)) {
         /* an unscaled gain with a diagonal R_eff: row by row (its result check covers x and P) */
         float t_rows;
-        const mca_status_t st = apply_rows(x, p, n, h, z, r, m, pl.keep, pl.use_d ? t : NULL, ws, &t_rows);
+        const mca_status_t st = apply_rows(x, p, n, h, z, r, m, pl.keep, pl.use_d ? t : NULL, ws, &t_rows, NULL);
         if (st != MCA_OK) {
             return st; /* x, p, rs untouched */
         }

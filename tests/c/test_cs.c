@@ -85,8 +85,64 @@ static void test_long_run_stays_spd(void)
     CHECK(ok);
 }
 
+/* The shared N/E covariance update of mca_cs3_update (no reports) gives the same bits as
+ * updating the axes one by one (mca_cs_axis_update, which never shares), aided or not, every
+ * mask, and still when N and E stop having the same P. */
+static void test_shared_ne_update_same_bits(void)
+{
+    mca_cs_config_t h, v;
+    mca_cs_config_default_h(&h);
+    mca_cs_config_default_v(&v);
+    mca_cs3_t a, b;
+    float ws[MCA_CS_WS_LEN];
+    const float p0[3] = {3.0f, -2.0f, 1.0f}, v0[3] = {4.0f, -1.0f, 0.5f};
+    CHECK_EQ_INT(mca_cs3_init(&a, &h, &v, p0, v0), MCA_OK);
+    memcpy(&b, &a, sizeof(a));
+    const uint8_t masks[4][3] = {{3, 3, 3}, {1, 1, 1}, {2, 2, 2}, {3, 3, 0}};
+    for (int k = 0; k < 60; ++k) {
+        const float t = 0.2f;
+        const float dv[3] = {0.3f * sinf(0.1f * (float)k), -0.2f, 0.05f};
+        const float dp[3] = {0.5f * dv[0] * t, 0.5f * dv[1] * t, 0.5f * dv[2] * t};
+        mca_cs_inc_t inc[3];
+        const mca_cs_inc_t *use[3] = {NULL, NULL, NULL};
+        for (int i = 0; i < 3; ++i) {
+            inc[i].dp_m = dp[i];
+            inc[i].dv_mps = dv[i];
+            inc[i].acc_var_m2ps4 = 0.09f;
+            use[i] = (k % 3 != 0) ? &inc[i] : NULL; /* aided two fixes in three */
+        }
+        CHECK_EQ_INT(mca_cs3_predict_aided(&a, t, use), MCA_OK);
+        CHECK_EQ_INT(mca_cs3_predict_aided(&b, t, use), MCA_OK);
+        const float ft = (float)k;
+        const float pos[3] = {3.0f + 0.8f * ft + 1.7f * sinf(ft), -2.0f - 0.2f * ft + cosf(3.0f * ft),
+                              1.0f + 0.1f * sinf(ft)};
+        const float vel[3] = {4.0f + 0.2f * sinf(7.0f * ft), -1.0f + 0.1f * cosf(ft), 0.5f};
+        float rp[3] = {2.25f, 2.25f, 9.0f};
+        const float rv[3] = {0.04f, 0.04f, 0.09f};
+        if (k == 40) {
+            rp[1] = 4.0f; /* E weighted differently once: from here on P_N and P_E differ */
+        }
+        const uint8_t *mask = masks[(k / 5) % 4];
+        for (int i = 0; i < 3; ++i) {
+            if (mask[i] != 0u) {
+                CHECK_EQ_INT(mca_cs_axis_update(&a.axis[i], pos[i], vel[i], rp[i], rv[i], mask[i], ws, NULL), MCA_OK);
+            }
+        }
+        CHECK_EQ_INT(mca_cs3_update(&b, pos, vel, rp, rv, mask, ws, NULL), MCA_OK);
+        for (int i = 0; i < 3; ++i) {
+            CHECK(memcmp(a.axis[i].x, b.axis[i].x, sizeof(a.axis[i].x)) == 0);
+            CHECK(memcmp(a.axis[i].p, b.axis[i].p, sizeof(a.axis[i].p)) == 0);
+            CHECK(memcmp(&a.axis[i].rs, &b.axis[i].rs, sizeof(a.axis[i].rs)) == 0);
+            CHECK_EQ_INT(a.axis[i].aid.valid, b.axis[i].aid.valid);
+        }
+    }
+    /* the weighting at k = 40 made the two axes differ: the later fixes took the unshared path */
+    CHECK(memcmp(a.axis[0].p, a.axis[1].p, sizeof(a.axis[0].p)) != 0);
+}
+
 int main(void)
 {
+    test_shared_ne_update_same_bits();
     test_bad_input_leaves_state();
     test_series_switch_continuous();
     test_long_run_stays_spd();

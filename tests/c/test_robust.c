@@ -859,6 +859,86 @@ static void test_plain_test_statistic_small_m(void)
     }
 }
 
+/* mca_kf_test_stat is the T mca_kf_update_tested takes (same bits, m = 1, 2 closed form and
+ * m = 3 from the factor); mca_kf_update_plain is its plain row update (same x, P, memory) and
+ * returns gains that reproduce x+ row by row; bad arguments are refused. */
+static void test_plain_gains_and_test_stat(void)
+{
+    enum { N = 5 };
+    const float x0[N] = {1.0f, -0.5f, 0.2f, 0.3f, 0.0f};
+    float p0[N * N] = {0};
+    for (int i = 0; i < N; ++i) {
+        p0[i * N + i] = 0.5f + 0.25f * (float)i;
+    }
+    p0[0 * N + 3] = p0[3 * N + 0] = 0.2f;
+    p0[1 * N + 4] = p0[4 * N + 1] = -0.1f;
+    const float h[3 * N] = {1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f};
+    const float z[3] = {2.5f, 0.4f, -0.3f};
+    const float r[9] = {0.8f, 0.0f, 0.0f, 0.0f, 0.05f, 0.0f, 0.0f, 0.0f, 0.3f};
+    const float nu_t[3] = {1.7f, -0.9f, 0.4f};
+    const float c_t[9] = {1.3f, 0.31f, 0.1f, 0.29f, 0.6f, 0.0f, 0.1f, 0.0f, 0.9f};
+    for (size_t m = 1; m <= 3; ++m) {
+        float rm[9] = {0}, cm[9] = {0};
+        for (size_t i = 0; i < m; ++i) {
+            for (size_t j = 0; j < m; ++j) {
+                rm[i * m + j] = r[i * 3 + j];
+                cm[i * m + j] = c_t[i * 3 + j];
+            }
+        }
+        for (int tested = 0; tested <= 1; ++tested) {
+            const float *nt = tested ? nu_t : NULL, *ct = tested ? cm : NULL;
+            mca_robust_state_t rs1, rs2;
+            mca_robust_state_init(&rs1);
+            mca_robust_state_init(&rs2);
+            float x1[N], p1[N * N], x2[N], p2[N * N], gains[3 * (N + 1)];
+            memcpy(x1, x0, sizeof(x1));
+            memcpy(p1, p0, sizeof(p1));
+            memcpy(x2, x0, sizeof(x2));
+            memcpy(p2, p0, sizeof(p2));
+            CHECK_EQ_INT(mca_kf_update_tested(x1, p1, N, h, z, rm, m, NULL, &rs1, nt, ct, g_ws, WS_MAX, NULL), MCA_OK);
+            CHECK_EQ_INT(mca_kf_update_plain(x2, p2, N, h, z, rm, m, &rs2, nt, ct, g_ws, WS_MAX, gains), MCA_OK);
+            CHECK(memcmp(x1, x2, sizeof(x1)) == 0 && memcmp(p1, p2, sizeof(p1)) == 0);
+            CHECK(memcmp(&rs1, &rs2, sizeof(rs1)) == 0);
+            /* the gains, applied to x0 row by row as the row update does, give x+ */
+            float x3[N];
+            memcpy(x3, x0, sizeof(x3));
+            for (size_t row = 0; row < m; ++row) {
+                float hx = 0.0f;
+                for (size_t l = 0; l < N; ++l) {
+                    if (h[row * N + l] != 0.0f) {
+                        hx += h[row * N + l] * x3[l];
+                    }
+                }
+                const float nu = z[row] - hx;
+                for (size_t i = 0; i < N; ++i) {
+                    x3[i] = x3[i] + gains[row * (N + 1) + i] * nu;
+                }
+                CHECK(gains[row * (N + 1) + N] > 0.0f);
+            }
+            CHECK(memcmp(x3, x2, sizeof(x3)) == 0);
+            if (tested) {
+                float t = -1.0f;
+                CHECK_EQ_INT(mca_kf_test_stat(nu_t, cm, m, g_ws, &t), MCA_OK);
+                CHECK(memcmp(&t, &rs1.t_stat, sizeof(t)) == 0);
+            }
+        }
+    }
+    /* refused: an off-diagonal R, NULL gains, m out of range; an indefinite C_t */
+    float x1[N], p1[N * N], gains[3 * (N + 1)], t;
+    memcpy(x1, x0, sizeof(x1));
+    memcpy(p1, p0, sizeof(p1));
+    const float r_full[4] = {0.8f, 0.1f, 0.1f, 0.05f};
+    CHECK_EQ_INT(mca_kf_update_plain(x1, p1, N, h, z, r_full, 2, NULL, NULL, NULL, g_ws, WS_MAX, gains),
+                 MCA_ERR_BAD_ARG);
+    CHECK_EQ_INT(mca_kf_update_plain(x1, p1, N, h, z, r, 1, NULL, NULL, NULL, g_ws, WS_MAX, NULL), MCA_ERR_NULL);
+    CHECK_EQ_INT(mca_kf_update_plain(x1, p1, N, h, z, r, 0, NULL, NULL, NULL, g_ws, WS_MAX, gains), MCA_ERR_BAD_ARG);
+    CHECK(memcmp(x1, x0, sizeof(x1)) == 0 && memcmp(p1, p0, sizeof(p1)) == 0);
+    const float c_bad[4] = {1.0f, 2.0f, 2.0f, 1.0f};
+    CHECK_EQ_INT(mca_kf_test_stat(nu_t, c_bad, 2, g_ws, &t), MCA_ERR_SINGULAR);
+    CHECK_EQ_INT(mca_kf_test_stat(nu_t, c_t, 0, g_ws, &t), MCA_ERR_BAD_ARG);
+    CHECK_EQ_INT(mca_kf_test_stat(NULL, c_t, 1, g_ws, &t), MCA_ERR_NULL);
+}
+
 int main(void)
 {
     test_chi2_table_matches_closed_form();
@@ -872,5 +952,6 @@ int main(void)
     test_tested_update_decides_on_the_test_innovation();
     test_row_by_row_equals_joint_update();
     test_plain_test_statistic_small_m();
+    test_plain_gains_and_test_stat();
     TEST_MAIN_END();
 }

@@ -22,7 +22,8 @@
 #define MCA_CS_VEL 2
 
 /** Scratch floats one CS axis update needs. */
-#define MCA_CS_WS_LEN MCA_KF_WS_LEN(MCA_CS_NX, MCA_CS_NZ)
+/** Scratch of a CS update: the measurement update's, then N's row gains for E (mca_cs3_update). */
+#define MCA_CS_WS_LEN (MCA_KF_WS_LEN(MCA_CS_NX, MCA_CS_NZ) + MCA_CS_NZ * (MCA_CS_NX + 1))
 
 /** Configuration of one axis. Defaults from mca_cs_config_default_h/_v. */
 typedef struct {
@@ -156,8 +157,11 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t_s, const mca_cs_inc_t 
 /**
  * Update the three axes; per-axis masks, an axis with mask 0 is skipped, all-zero is
  * MCA_ERR_BAD_MASK. Every axis is validated before any changes. rep (3 entries) may be NULL.
+ * Without reports, N and E share one covariance update when their covariances have the same
+ * bits, with the same mask and variances, both plain (docs/ALGORITHMS.md 3): E applies N's
+ * gains to its own state and takes N's new P, the same bits as its own update.
  * Cost: one mca_kf_update per axis with a mask, ~2.5k instructions each on the Cortex-M4F
- * (-Os, mean of the three-axis call 7.5k, max 10.1k; 6.9k mean at -O2).
+ * (-Os, mean of the three-axis call 7.5k, max 10.1k; 6.9k mean at -O2); a shared E ~0.5k.
  * @param[out] ws MCA_CS_WS_LEN floats of scratch (shared with other filters by the caller)
  */
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos_ned_m[3], const float vel_ned_mps[3],

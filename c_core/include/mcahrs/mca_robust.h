@@ -209,4 +209,29 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
                                   mca_robust_state_t *rs, const float *nu_t, const float *c_t,
                                   float *ws, size_t ws_len, mca_update_report_t *rep);
 
+/**
+ * T = nu_t^T C_t^-1 nu_t of a test innovation, bit for bit as mca_kf_update_tested takes it:
+ * C_t symmetrised, closed form for m <= 2 (when C_t's determinant is positive and finite),
+ * else from its Cholesky factor. For a caller that applies an update's result itself
+ * (mca_cs3_update's shared N/E covariance) and reports the same T.
+ * @param[in]  nu_t, c_t m and m x m values (not checked for finiteness: T is then not finite)
+ * @param[out] ws 2 m^2 + m floats of scratch; t_stat the statistic
+ * @return MCA_ERR_NULL, MCA_ERR_BAD_ARG (m 0 or > MCA_MEAS_MAX), MCA_ERR_SINGULAR (C_t not
+ *         positive definite), or MCA_OK.
+ */
+mca_status_t mca_kf_test_stat(const float *nu_t, const float *c_t, size_t m, float *ws, float *t_stat);
+
+/**
+ * mca_kf_update_tested in plain mode with no report and a diagonal R (its row-by-row form), which
+ * also returns what each row did: for row i (in order, all rows) gains[i (n + 1) + j] = k_j, the
+ * gain applied to x_j, and gains[i (n + 1) + n] = 1 / s_i. A state whose covariance has the same
+ * bits as p had, updated with the same h and r, gets the same P+ and these gains
+ * (mca_cs3_update: the N and E axes).
+ * @param[out] gains m (n + 1) floats
+ * @return MCA_ERR_BAD_ARG also for an R with an off-diagonal entry; else as mca_kf_update_tested.
+ */
+mca_status_t mca_kf_update_plain(float *x, float *p, size_t n, const float *h, const float *z, const float *r,
+                                 size_t m, mca_robust_state_t *rs, const float *nu_t, const float *c_t, float *ws,
+                                 size_t ws_len, float *gains);
+
 #endif /* MCA_ROBUST_H */
