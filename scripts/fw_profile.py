@@ -2,7 +2,7 @@
 """Per-function instruction profile of one core entry point on the emulated Cortex-M4F.
 
     python scripts/fw_profile.py [--entry mca_nav_gps] [--vector tests/vectors/nav_turns.mcav]
-                                 [--build build/fw] [--top 25] [--lines F] [--exclude F]
+                                 [--build build/fw] [--top 25] [--lines F] [--exclude F] [--calls]
 
 Runs the firmware replay image (``scripts/fw_report.py`` builds it) on ``qemu-system-arm -M
 mps2-an386 -icount shift=0`` with QEMU's translation and execution logs
@@ -74,6 +74,7 @@ def main() -> int:
         help="leave out FUNCTION's calls (with all they call) inside the entry, e.g. --entry mca_nav_gps "
         "--exclude yaw_obs: the GPS step without the course update",
     )  # fmt: skip
+    ap.add_argument("--calls", action="store_true", help="also print each call's count (to find the longest)")
     args = ap.parse_args()
 
     elf = args.build / "fw.elf"
@@ -171,8 +172,8 @@ def main() -> int:
     if calls == 0:
         print(f"{args.entry} was never called by {args.vector.name}", file=sys.stderr)
         return 1
-    if __import__("os").environ.get("FWP_CALLS"):
-        print("per call:", per_call)
+    if args.calls:
+        print("instructions of each call, in order:", " ".join(str(c) for c in per_call))
     total = sum(self_count.values())
     without = f" without {args.exclude}" if args.exclude else ""
     spread = f"min {min(per_call)}, max {max(per_call)}"
