@@ -2,7 +2,7 @@
 """Per-function instruction profile of one core entry point on the emulated Cortex-M4F.
 
     python scripts/fw_profile.py [--entry mca_nav_gps] [--vector tests/vectors/nav_turns.mcav]
-                                 [--build build/fw] [--top 25] [--lines F] [--exclude F] [--calls]
+                                 [--build build/fw] [--top 25] [--lines F] [--exclude F] [--calls] [--call K]
 
 Runs the firmware replay image (``scripts/fw_report.py`` builds it) on ``qemu-system-arm -M
 mps2-an386 -icount shift=0`` with QEMU's translation and execution logs
@@ -21,7 +21,8 @@ line; that needs a build with line tables (configure a copy with ``CFLAGS=-g``, 
 instruction, and pass ``--build``). ``--exclude F`` leaves out F's calls inside the entry,
 with everything they call (``--entry mca_nav_gps --exclude yaw_obs``: the GPS step without the
 course-over-ground update, the part the issue's <= 12,000 goal names). The first line gives the
-mean, min and max of the calls.
+mean, min and max of the calls; ``--calls`` prints every call's count, ``--call K`` profiles the
+K-th call alone (where a maximum goes).
 
 It reports; it asserts nothing. Its per-call totals are comparable with fw_report.py's SysTick
 counts, which also include the call and its argument set-up; both count every executed
@@ -75,6 +76,7 @@ def main() -> int:
         "--exclude yaw_obs: the GPS step without the course update",
     )  # fmt: skip
     ap.add_argument("--calls", action="store_true", help="also print each call's count (to find the longest)")
+    ap.add_argument("--call", type=int, help="profile only the call with this index (0-based, see --calls)")
     args = ap.parse_args()
 
     elf = args.build / "fw.elf"
@@ -158,7 +160,7 @@ def main() -> int:
         if entry_depth >= len(stack) or (entry_depth >= 0 and stack[entry_depth] != entry_func):
             entry_depth = -1
         prev_func = f_now
-        if entry_depth >= 0 and excl_depth < 0:
+        if entry_depth >= 0 and excl_depth < 0 and (args.call is None or calls - 1 == args.call):
             f = f_now
             self_count[f] += n
             per_call[-1] += n
@@ -175,6 +177,8 @@ def main() -> int:
     if args.calls:
         print("instructions of each call, in order:", " ".join(str(c) for c in per_call))
     total = sum(self_count.values())
+    if args.call is not None:
+        calls = 1  # one call profiled: its own figures
     without = f" without {args.exclude}" if args.exclude else ""
     spread = f"min {min(per_call)}, max {max(per_call)}"
     print(f"{args.entry}{without}: {calls} calls in {args.vector.name}, {total / calls:.0f} instructions "
