@@ -71,6 +71,20 @@ MCA_COLD mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, 
     return MCA_OK;
 }
 
+/* out = A M, A = I + [[0, r2, -r1], [-r2, 0, r0], [r1, -r0, 0]] = I - [r x] (r = w dt, the error
+ * state's first-order rotation), M 3 x 3 read with row stride rs and column stride cs (6, 1: a
+ * block of the 6 x 6 P; 1, 3: the transpose of a row-major 3 x 3); out row-major. Two
+ * multiply-adds an entry instead of three, no loop over A. */
+static void a_times(float out[9], const float r[3], const float *m, size_t rs, size_t cs)
+{
+    for (size_t j = 0; j < 3u; ++j) {
+        const float m0 = m[j * cs], m1 = m[rs + j * cs], m2 = m[2u * rs + j * cs];
+        out[j] = m0 + r[2] * m1 - r[1] * m2;
+        out[3u + j] = m1 - r[2] * m0 + r[0] * m2;
+        out[6u + j] = m2 + r[1] * m0 - r[0] * m1;
+    }
+}
+
 mca_status_t mca_att_propagate(mca_att_t *att, const float gyro[3], float dt)
 {
     if (att == NULL || gyro == NULL) {
@@ -92,29 +106,28 @@ mca_status_t mca_att_propagate(mca_att_t *att, const float gyro[3], float dt)
     /* F = [[A, -I dt], [0, I]], A = I - [w x] dt. P = F P F^T + Qd, written out by blocks
      * [[P11, P12], [P21, P22]] so no 6x6 temporaries are needed:
      *   P11' = A P11 A^T - dt (A P12 + P21 A^T) + dt^2 P22
-     *   P12' = A P12 - dt P22,  P22' = P22 (+ Qd) */
-    const float a[9] = {1.0f, rv[2], -rv[1], -rv[2], 1.0f, rv[0], rv[1], -rv[0], 1.0f};
-    float p11[9], p12[9], p22[9], t1[9], t2[9];
-    for (size_t i = 0; i < 3u; ++i) {
-        for (size_t j = 0; j < 3u; ++j) {
-            p11[i * 3u + j] = att->p[i * 6u + j];
-            p12[i * 3u + j] = att->p[i * 6u + j + 3u];
-            p22[i * 3u + j] = att->p[(i + 3u) * 6u + j + 3u];
-        }
-    }
-    float ap12[9];
-    mca_mat_mul(ap12, a, p12, 3u, 3u, 3u);        /* A P12 */
-    mca_mat_mul(t1, a, p11, 3u, 3u, 3u);          /* A P11 */
-    mca_mat_mul_bt(t2, t1, a, 3u, 3u, 3u);        /* A P11 A^T */
+     *   P12' = A P12 - dt P22,  P22' = P22 (+ Qd)
+     * The products by A use its structure (a_times); P11' is formed on its upper triangle and
+     * mirrored, P12' written to both blocks, so P' is exactly symmetric without a pass. */
+    float *p = att->p;
+    float ap12[9], t1[9], t2[9];
+    a_times(ap12, rv, &p[3], 6u, 1u); /* A P12 */
+    a_times(t1, rv, p, 6u, 1u);       /* A P11 */
+    a_times(t2, rv, t1, 1u, 3u);      /* A (A P11)^T = A P11 A^T (P11 symmetric) */
     const float dt2 = dt * dt;
     for (size_t i = 0; i < 3u; ++i) {
         for (size_t j = 0; j < 3u; ++j) {
-            /* (A P12)_ij + (P21 A^T)_ij, P21 A^T = (A P12)^T */
-            const float cross = ap12[i * 3u + j] + ap12[j * 3u + i];
-            att->p[i * 6u + j] = t2[i * 3u + j] - dt * cross + dt2 * p22[i * 3u + j];
-            const float n12 = ap12[i * 3u + j] - dt * p22[i * 3u + j];
-            att->p[i * 6u + j + 3u] = n12;
-            att->p[(j + 3u) * 6u + i] = n12;
+            const float p22 = p[(i + 3u) * 6u + j + 3u];
+            if (j >= i) {
+                /* (A P12)_ij + (P21 A^T)_ij, P21 A^T = (A P12)^T */
+                const float cross = ap12[i * 3u + j] + ap12[j * 3u + i];
+                const float n11 = t2[i * 3u + j] - dt * cross + dt2 * p22;
+                p[i * 6u + j] = n11;
+                p[j * 6u + i] = n11;
+            }
+            const float n12 = ap12[i * 3u + j] - dt * p22;
+            p[i * 6u + j + 3u] = n12;
+            p[(j + 3u) * 6u + i] = n12;
         }
     }
     /* AKF of the roll/pitch observation scales the process noise (1 in other modes) */
@@ -124,7 +137,6 @@ mca_status_t mca_att_propagate(mca_att_t *att, const float gyro[3], float dt)
         att->p[i * 7u] += qg;
         att->p[(i + 3u) * 7u] += qb;
     }
-    mca_mat_symmetrize(att->p, 6u);
     return MCA_OK;
 }
 

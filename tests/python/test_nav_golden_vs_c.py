@@ -268,15 +268,15 @@ def _discrete(c: dict[str, np.ndarray], g: dict[str, np.ndarray]) -> tuple[dict[
 # variance 0.33 relative on the attitude P).
 TOL: dict[str, float] = {
     # float32 quaternion in a stable filter: ~1e-7 per step, corrected by every observation;
-    # measured 7.7e-5 rad (outage_fixedwing: 30 s of lost-GPS observations in turns).
+    # measured 3.2e-5 rad (7.7e-5 before the structured attitude covariance predict).
     "attitude_rad": 3e-4,
-    "euler_rad": 3e-4,  # the same error seen as roll, pitch, yaw (measured 7.7e-5)
-    # bias = sum of float32 corrections of the gain; measured 1.8e-6 rad/s.
+    "euler_rad": 3e-4,  # the same error seen as roll, pitch, yaw (measured 2.8e-5)
+    # bias = sum of float32 corrections of the gain; measured 2.2e-6 rad/s.
     "gyro_bias_rps": 1e-5,
     # float32 NED position: ulp 6e-5 m at 1 km, plus the CS state carried in float32 and the
-    # constant-acceleration extrapolation to IMU time; measured 9.4e-4 m (2 km from home).
+    # constant-acceleration extrapolation to IMU time; measured 2.0e-3 m (2 km from home).
     "pos_m": 5e-3,
-    "vel_mps": 3e-4,  # measured 6.0e-5 m/s (extrapolated after a 30 s outage re-initialisation)
+    "vel_mps": 3e-4,  # measured 1.3e-4 m/s (extrapolated after a 30 s outage re-initialisation)
     "acc_mps2": 5e-5,  # measured 1.0e-5 m/s^2
     # Attitude P diagonal, relative: the per-step process noise of an unobserved state (z gyro
     # bias at rest: +3e-7 relative per step at 400 Hz) is rounded to a few float32 ulps each
