@@ -781,15 +781,26 @@ static void test_row_by_row_equals_joint_update(void)
  * through the Cholesky factor. Checked against T in double on the row path (no report, the
  * navigation's CS updates) and the general path (report), and SINGULAR / NONFINITE for an
  * indefinite or non-finite C_t or nu_t. */
+/* A CS-axis-like prior (5 states, position and its GPS error correlated) for the row tests. */
+static const float k_x5[5] = {1.0f, -0.5f, 0.2f, 0.3f, 0.0f};
+
+static void prior5(float p0[25])
+{
+    for (int i = 0; i < 25; ++i) {
+        p0[i] = 0.0f;
+    }
+    for (int i = 0; i < 5; ++i) {
+        p0[i * 5 + i] = 0.5f + 0.25f * (float)i;
+    }
+    p0[0 * 5 + 3] = p0[3 * 5 + 0] = 0.2f;
+}
+
 static void test_plain_test_statistic_small_m(void)
 {
     enum { N = 5 };
-    const float x0[N] = {1.0f, -0.5f, 0.2f, 0.3f, 0.0f};
-    float p0[N * N] = {0};
-    for (int i = 0; i < N; ++i) {
-        p0[i * N + i] = 0.5f + 0.25f * (float)i;
-    }
-    p0[0 * N + 3] = p0[3 * N + 0] = 0.2f;
+    const float *const x0 = k_x5;
+    float p0[N * N];
+    prior5(p0);
     const float h[2 * N] = {1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f};
     const float z[2] = {2.5f, 0.4f};
     const float r[4] = {0.8f, 0.0f, 0.0f, 0.05f};
@@ -865,12 +876,9 @@ static void test_plain_test_statistic_small_m(void)
 static void test_plain_gains_and_test_stat(void)
 {
     enum { N = 5 };
-    const float x0[N] = {1.0f, -0.5f, 0.2f, 0.3f, 0.0f};
-    float p0[N * N] = {0};
-    for (int i = 0; i < N; ++i) {
-        p0[i * N + i] = 0.5f + 0.25f * (float)i;
-    }
-    p0[0 * N + 3] = p0[3 * N + 0] = 0.2f;
+    const float *const x0 = k_x5;
+    float p0[N * N];
+    prior5(p0);
     p0[1 * N + 4] = p0[4 * N + 1] = -0.1f;
     const float h[3 * N] = {1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f};
     const float z[3] = {2.5f, 0.4f, -0.3f};
