@@ -372,15 +372,16 @@ static mca_status_t check_update(float z_p, float z_v, float r_p, float r_v, uin
 }
 
 /* The test innovation of an aided update (docs/ALGORITHMS.md 2): nu_t = z - y and C_t = s + R
- * over the rows in use (rows[i]: 0 position, 1 velocity; z, r in row order, r m x m). */
-static void aid_test(const mca_cs_aid_t *aid, const float *z, const float *r, const size_t *rows, size_t m,
-                     float *nu_t, float *c_t)
+ * over the rows in use (rows[i]: 0 position, 1 velocity; zq, rq indexed by that, R diagonal). */
+static void aid_test(const mca_cs_aid_t *aid, const float zq[MCA_CS_NZ], const float rq[MCA_CS_NZ],
+                     const size_t *rows, size_t m, float *nu_t, float *c_t)
 {
     for (size_t i = 0; i < m; ++i) {
-        nu_t[i] = z[i] - aid->y[rows[i]];
+        nu_t[i] = zq[rows[i]] - aid->y[rows[i]];
         for (size_t j = 0; j < m; ++j) {
-            c_t[i * m + j] = aid->s[rows[i] * MCA_CS_NZ + rows[j]] + r[i * m + j];
+            c_t[i * m + j] = aid->s[rows[i] * MCA_CS_NZ + rows[j]];
         }
+        c_t[i * m + i] += rq[rows[i]];
     }
 }
 
@@ -422,7 +423,7 @@ MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float
     const int aided = ax->aid.valid != 0u;
     float nu_t[MCA_CS_NZ], c_t[MCA_CS_NZ * MCA_CS_NZ];
     if (aided) {
-        aid_test(&ax->aid, z, r, rows, m, nu_t, c_t);
+        aid_test(&ax->aid, zq, rq, rows, m, nu_t, c_t);
     }
     const mca_status_t su =
         gains != NULL ? mca_kf_update_plain(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->rs, aided ? nu_t : NULL,
@@ -558,14 +559,7 @@ MCA_NOINLINE static int axis_update_shared(mca_cs_axis_t *ax, const float p_post
         rows[m++] = q;
     }
     if (ax->aid.valid != 0u) { /* the tested T, formed as mca_cs_axis_update forms it */
-        float z[MCA_CS_NZ], r[MCA_CS_NZ * MCA_CS_NZ];
-        for (size_t i = 0; i < m; ++i) {
-            z[i] = zq[rows[i]];
-            for (size_t j = 0; j < m; ++j) {
-                r[i * m + j] = i == j ? rq[rows[i]] : 0.0f;
-            }
-        }
-        aid_test(&ax->aid, z, r, rows, m, nu_t, c_t);
+        aid_test(&ax->aid, zq, rq, rows, m, nu_t, c_t);
         if (mca_kf_test_stat(nu_t, c_t, m, ws, &t_stat) != MCA_OK) {
             return 0;
         }
