@@ -141,8 +141,8 @@ mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca
  * Predict all three axes over t_s; a bad t_s changes none. An axis whose model (the fields
  * mca_cs_transition reads) equals the previous axis' reuses its Phi and unit-variance Q (the
  * maneuver variance s2 scales the Singer block per axis): N and E always, D too when its
- * time constants and sigmas are the horizontal ones. Cost: ~2.4k instructions on the
- * Cortex-M4F (-Os; 2.3k at -O2), mean over the vectors (scripts/fw_report.py): three expm1 per
+ * time constants and sigmas are the horizontal ones. Cost: ~2.2k instructions on the
+ * Cortex-M4F (-Os with LTO; 2.2k at -O2), mean over the vectors (scripts/fw_report.py): three expm1 per
  * distinct model, the covariance on its upper triangle.
  */
 mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t_s);
@@ -161,7 +161,8 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t_s, const mca_cs_inc_t 
  * bits, with the same mask and variances, both plain (docs/ALGORITHMS.md 3): E applies N's
  * gains to its own state and takes N's new P, the same bits as its own update.
  * Cost: one mca_kf_update per axis with a mask, ~2.5k instructions each on the Cortex-M4F
- * (-Os, mean of the three-axis call 7.5k, max 10.1k; 6.9k mean at -O2); a shared E ~0.5k.
+ * (-Os with LTO, mean of the three-axis call with reports 7.4k, max 10.0k; 6.9k mean at -O2); a
+ * shared E ~0.5k.
  * @param[out] ws MCA_CS_WS_LEN floats of scratch (shared with other filters by the caller)
  */
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos_ned_m[3], const float vel_ned_mps[3],
