@@ -386,7 +386,8 @@ static void aid_test(const mca_cs_aid_t *aid, const float zq[MCA_CS_NZ], const f
 }
 
 /* mca_cs_axis_update; with gains (plain mode, no report) through mca_kf_update_plain, which
- * also returns the rows' gains. */
+ * also returns the rows' gains (gains may lie in ws past the update's own scratch, which is all
+ * the update is given). */
 MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r_p, float r_v,
                                              uint8_t mask, float *ws, mca_update_report_t *rep, float *gains)
 {
@@ -427,7 +428,7 @@ MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float
     }
     const mca_status_t su =
         gains != NULL ? mca_kf_update_plain(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->rs, aided ? nu_t : NULL,
-                                            aided ? c_t : NULL, ws, MCA_CS_WS_LEN, gains)
+                                            aided ? c_t : NULL, ws, MCA_KF_WS_LEN(MCA_CS_NX, MCA_CS_NZ), gains)
                       : mca_kf_update_tested(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs,
                                              aided ? nu_t : NULL, aided ? c_t : NULL, ws, MCA_CS_WS_LEN, rep);
     if (su == MCA_OK) {
