@@ -296,7 +296,7 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
         return MCA_ERR_BAD_ARG;
     }
     float eul[3];
-    mca_quat_to_euler(eul, q_d);
+    mca_quat_to_euler_part(eul, q_d, 6u); /* pitch (the tilt gate) and yaw */
     if (fabsf(eul[1]) > att->cfg.max_tilt_obs_rad) {
         return MCA_ERR_BAD_ARG;
     }
@@ -323,7 +323,7 @@ mca_status_t mca_att_align_yaw(mca_att_t *att, float psi_m, float r)
         return MCA_ERR_BAD_ARG;
     }
     float eul[3];
-    mca_quat_to_euler(eul, att->q_nb);
+    mca_quat_to_euler_part(eul, att->q_nb, 3u); /* roll and pitch kept, yaw set */
     eul[2] = mca_wrap_pi(psi_m);
     mca_quat_from_euler(att->q_nb, eul);
     for (size_t i = 0; i < MCA_ATT_NX; ++i) {
@@ -346,8 +346,7 @@ mca_status_t mca_att_mag_heading(const mca_att_t *att, const float m[3], float d
         return MCA_ERR_BAD_ARG;
     }
     float eul[3], ql[4], ml[3];
-    mca_quat_to_euler(eul, att->q_nb);
-    eul[2] = 0.0f;
+    mca_quat_to_euler_part(eul, att->q_nb, 3u); /* roll and pitch; yaw 0 */
     mca_quat_from_euler(ql, eul);
     mca_quat_rotate(ml, ql, m); /* the field levelled: C_nb(roll, pitch, 0) m */
     *psi_m = mca_wrap_pi(mca_atan2f(-ml[1], ml[0]) + decl);

@@ -420,14 +420,26 @@ void mca_quat_to_dcm(float c[9], const float q[4])
     c[8] = 1.0f - 2.0f * (x * x + y * y);
 }
 
-void mca_quat_to_euler(float e[3], const float q[4])
+void mca_quat_to_euler_part(float e[3], const float q[4], unsigned axes)
 {
     const float w = q[0], x = q[1], y = q[2], z = q[3];
-    e[0] = mca_atan2f(2.0f * (w * x + y * z), 1.0f - 2.0f * (x * x + y * y));
-    float s = 2.0f * (w * y - z * x);
-    s = s > 1.0f ? 1.0f : (s < -1.0f ? -1.0f : s);
-    e[1] = mca_atan2f(s, sqrtf(1.0f - s * s)); /* asin without another libm routine */
-    e[2] = mca_atan2f(2.0f * (w * z + x * y), 1.0f - 2.0f * (y * y + z * z));
+    e[0] = e[1] = e[2] = 0.0f;
+    if ((axes & 1u) != 0u) {
+        e[0] = mca_atan2f(2.0f * (w * x + y * z), 1.0f - 2.0f * (x * x + y * y));
+    }
+    if ((axes & 2u) != 0u) {
+        float s = 2.0f * (w * y - z * x);
+        s = s > 1.0f ? 1.0f : (s < -1.0f ? -1.0f : s);
+        e[1] = mca_atan2f(s, sqrtf(1.0f - s * s)); /* asin without another libm routine */
+    }
+    if ((axes & 4u) != 0u) {
+        e[2] = mca_atan2f(2.0f * (w * z + x * y), 1.0f - 2.0f * (y * y + z * z));
+    }
+}
+
+void mca_quat_to_euler(float e[3], const float q[4])
+{
+    mca_quat_to_euler_part(e, q, 7u);
 }
 
 void mca_quat_from_euler(float q[4], const float e[3])

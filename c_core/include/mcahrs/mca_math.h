@@ -88,6 +88,9 @@ void mca_quat_to_dcm(float c_nb[9], const float q_nb[4]);
  * yaw psi in [-pi, pi]. euler_rad = {phi, theta, psi}.
  */
 void mca_quat_to_euler(float euler_rad[3], const float q_nb[4]);
+/** mca_quat_to_euler of the angles whose bit is set in axes (1 roll, 2 pitch, 4 yaw; the same
+ *  bits), the others 0: one atan2 an angle, for callers that need two of the three. */
+void mca_quat_to_euler_part(float euler_rad[3], const float q_nb[4], unsigned axes);
 
 /** q_nb from ZYX Euler angles {phi, theta, psi} (rad). */
 void mca_quat_from_euler(float q_nb[4], const float euler_rad[3]);
