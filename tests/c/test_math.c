@@ -102,10 +102,32 @@ static void test_copyf(void)
     }
 }
 
+/* mca_quat_to_euler_part: the selected angles, bit for bit those of mca_quat_to_euler, 0 for
+ * the others, over attitudes that include the pitch clamp near +-90 deg. */
+static void test_euler_part(void)
+{
+    const float eul[5][3] = {
+        {0.3f, -0.2f, 2.5f}, {-2.9f, 1.2f, -0.4f}, {0.0f, 1.5707963f, 1.0f}, {1.0f, -1.5707963f, -3.1f}, {0.0f, 0.0f, 0.0f}};
+    for (int k = 0; k < 5; ++k) {
+        float q[4], full[3];
+        mca_quat_from_euler(q, eul[k]);
+        mca_quat_to_euler(full, q);
+        for (unsigned axes = 0; axes < 8u; ++axes) {
+            float part[3];
+            mca_quat_to_euler_part(part, q, axes);
+            for (unsigned i = 0; i < 3u; ++i) {
+                const float want = ((axes >> i) & 1u) != 0u ? full[i] : 0.0f;
+                CHECK(memcmp(&part[i], &want, sizeof(float)) == 0);
+            }
+        }
+    }
+}
+
 int main(void)
 {
     test_cholesky();
     test_quat();
     test_copyf();
+    test_euler_part();
     TEST_MAIN_END();
 }
