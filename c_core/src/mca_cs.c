@@ -385,19 +385,12 @@ static void aid_test(const mca_cs_aid_t *aid, const float zq[MCA_CS_NZ], const f
     }
 }
 
-/* mca_cs_axis_update; with gains (plain mode, no report) through mca_kf_update_plain, which
- * also returns the rows' gains (gains may lie in ws past the update's own scratch, which is all
- * the update is given). */
+/* mca_cs_axis_update on inputs its callers have checked (pointers, check_update); with gains
+ * (plain mode, no report) through mca_kf_update_plain, which also returns the rows' gains (gains
+ * may lie in ws past the update's own scratch, which is all the update is given). */
 MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r_p, float r_v,
                                              uint8_t mask, float *ws, mca_update_report_t *rep, float *gains)
 {
-    if (ax == NULL || ws == NULL) {
-        return MCA_ERR_NULL;
-    }
-    const mca_status_t st = check_update(z_p, z_v, r_p, r_v, mask);
-    if (st != MCA_OK) {
-        return st;
-    }
     /* rows in mask order: 0 position (p + eps_p), 1 velocity (v + eps_v) */
     float h[MCA_CS_NZ * MCA_CS_NX];
     float z[MCA_CS_NZ], r[MCA_CS_NZ * MCA_CS_NZ];
@@ -440,6 +433,13 @@ MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float
 mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r_p, float r_v,
                                 uint8_t mask, float *ws, mca_update_report_t *rep)
 {
+    if (ax == NULL || ws == NULL) {
+        return MCA_ERR_NULL;
+    }
+    const mca_status_t st = check_update(z_p, z_v, r_p, r_v, mask);
+    if (st != MCA_OK) {
+        return st;
+    }
     return axis_update(ax, z_p, z_v, r_p, r_v, mask, ws, rep, NULL);
 }
 

@@ -216,8 +216,8 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro_b_rps[3
  * GPS step (ALGORITHMS.md 8): CS predict + update, then the gravity observation. A fix the
  * CS robust mode flags (GPS step 6) gives no course observation, and no roll/pitch observation
  * is made from it or for tau_a after it (counted as skipped).
- * Cost on the Cortex-M4F (-Os with LTO, scripts/fw_report.py): 11.0k instructions mean, 13.5k
- * max (11.2k mean at -O2): about two thirds the CS predict with the IMU-aided test prior and the
+ * Cost on the Cortex-M4F (-Os with LTO, scripts/fw_report.py): 10.8k instructions mean, 13.2k
+ * max (11.1k mean at -O2): about two thirds the CS predict with the IMU-aided test prior and the
  * three axis updates (N and E sharing one covariance update, mca_cs3_update), a fifth the
  * roll/pitch update, the rest the course update, geodesy and history look-ups
  * (scripts/fw_profile.py); stack 928 B worst case (the steps keep no update report on the
