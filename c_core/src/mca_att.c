@@ -1,6 +1,8 @@
 /* Attitude EKF (DESIGN.md 4, docs/ALGORITHMS.md 7). See mca_att.h. */
 #include "mcahrs/mca_att.h"
+#include "mca_att_nocheck.h"
 #include "mca_cold.h"
+#include "mca_kf_rows.h"
 
 #include <math.h>
 #include <string.h>
@@ -58,6 +60,7 @@ MCA_COLD mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, 
     }
     memset(att, 0, sizeof(*att));
     att->cfg = *cfg;
+    att->sin_max_tilt = mca_sinf(cfg->max_tilt_obs_rad);
     memcpy(att->q_nb, q_nb, sizeof(att->q_nb));
     mca_quat_normalize(att->q_nb);
     memcpy(att->bias_rps, bias, sizeof(att->bias_rps));
@@ -96,6 +99,12 @@ mca_status_t mca_att_propagate(mca_att_t *att, const float gyro[3], float dt)
     if (!isfinite(dt) || !(dt > 0.0f)) {
         return MCA_ERR_BAD_DT;
     }
+    mca_att_propagate_nocheck(att, gyro, dt);
+    return MCA_OK;
+}
+
+void mca_att_propagate_nocheck(mca_att_t *att, const float gyro[3], float dt)
+{
     const float w[3] = {gyro[0] - att->bias_rps[0], gyro[1] - att->bias_rps[1], gyro[2] - att->bias_rps[2]};
     const float rv[3] = {w[0] * dt, w[1] * dt, w[2] * dt};
     float dq[4], qn[4];
@@ -137,7 +146,6 @@ mca_status_t mca_att_propagate(mca_att_t *att, const float gyro[3], float dt)
         att->p[i * 7u] += qg;
         att->p[(i + 3u) * 7u] += qb;
     }
-    return MCA_OK;
 }
 
 /* Apply the error-state correction dx (ALGORITHMS.md 7). */
@@ -161,6 +169,44 @@ static void down_in_body(float d[3], const float q[4])
     d[0] = 2.0f * (q[1] * q[3] - q[0] * q[2]);
     d[1] = 2.0f * (q[2] * q[3] + q[0] * q[1]);
     d[2] = 1.0f - 2.0f * (q[1] * q[1] + q[2] * q[2]);
+}
+
+/* Plain mode without a report: the section-1 update from dx = 0 in its sequential form
+ * (ALGORITHMS.md 1), R = r I. The rows h_k = [e'_k, 0 0 0] touch only the attitude columns, so
+ * u = P h_k^T reads P's first three columns (rows, P symmetric) and s three of its values; the
+ * row's x and P step is the CS filter's (mca_kf_row_apply); dx starts zero. The first row
+ * reads P and writes ws, the second works there; P is written only when every s is positive and every value of
+ * dx and P+ finite. The memory (rs, NULL for none) ends as mca_kf_update's plain path leaves it. */
+MCA_NOINLINE static mca_status_t att_update_plain(mca_att_t *att, const float *h, size_t m, const float *nu,
+                                                  float r, float dx[MCA_ATT_NX], float *ws,
+                                                  mca_robust_state_t *rs)
+{
+    enum { N = MCA_ATT_NX };
+    float *u = ws, *pn = ws + N;
+    const float *ps = att->p;
+    float t_stat = 0.0f, fin = 0.0f;
+    for (size_t k = 0; k < m; ++k) {
+        const float *e = &h[k * N];
+        for (size_t i = 0; i < N; ++i) {
+            const float *pi = &ps[i * N];
+            u[i] = pi[0] * e[0] + pi[1] * e[1] + pi[2] * e[2];
+        }
+        const float s = r + e[0] * u[0] + e[1] * u[1] + e[2] * u[2];
+        if (!(s > 0.0f) || !(s <= 3.4028235e38f)) {
+            return s <= 0.0f ? MCA_ERR_SINGULAR : MCA_ERR_NONFINITE;
+        }
+        const float inv = 1.0f / s;
+        const float v = nu[k] - (e[0] * dx[0] + e[1] * dx[1] + e[2] * dx[2]);
+        t_stat += v * (v * inv);
+        fin += mca_kf_row_apply(dx, ps, dx, pn, u, N, inv, v);
+        ps = pn;
+    }
+    if (!isfinite(fin) || !isfinite(t_stat)) {
+        return MCA_ERR_NONFINITE;
+    }
+    mca_copyf(att->p, pn, N * N);
+    mca_kf_plain_memory(rs, m, t_stat);
+    return MCA_OK;
 }
 
 /* Update of the error state from zero with rows e (m x 3, at q_d), residual nu, diag R.
@@ -195,10 +241,14 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
     for (size_t i = 0; i < MCA_ATT_NX; ++i) {
         dx[i] = 0.0f;
     }
-    /* the _tested entry with no test directly: mca_kf_update is a wrapper frame on this path */
-    const mca_status_t st = mca_kf_update_tested(dx, att->p, MCA_ATT_NX, h, nu, rm, m,
-                                                 robust ? &att->cfg.robust : NULL, robust ? &att->rs : NULL,
-                                                 NULL, NULL, ws, MCA_ATT_WS_LEN, rep);
+    mca_status_t st;
+    if (rep == NULL && (!robust || att->cfg.robust.mode == (uint8_t)MCA_ROBUST_PLAIN)) {
+        st = att_update_plain(att, h, m, nu, r, dx, ws, robust ? &att->rs : NULL);
+    } else {
+        /* the _tested entry with no test directly: mca_kf_update is a wrapper frame on this path */
+        st = mca_kf_update_tested(dx, att->p, MCA_ATT_NX, h, nu, rm, m, robust ? &att->cfg.robust : NULL,
+                                  robust ? &att->rs : NULL, NULL, NULL, ws, MCA_ATT_WS_LEN, rep);
+    }
     if (st == MCA_OK) {
         if (level_only) {
             float u[3];
@@ -228,7 +278,7 @@ MCA_NOINLINE static mca_status_t gravity_measure(const mca_att_t *att, const flo
         gb[i] -= f[i];
     }
     const float gn = sqrtf(gb[0] * gb[0] + gb[1] * gb[1] + gb[2] * gb[2]);
-    if (gn < 0.5f * g || gn > 1.5f * g) {
+    if (!(gn >= 0.5f * g && gn <= 1.5f * g)) { /* also refuses a NaN */
         return MCA_ERR_BAD_ARG;
     }
     /* Roll and pitch of q_d as the down axis in body axes, d = C_nb^T e_down = [-sin theta,
@@ -239,10 +289,10 @@ MCA_NOINLINE static mca_status_t gravity_measure(const mca_att_t *att, const flo
     const float dy = d[1], dz = d[2];
     float s = -d[0];
     s = s > 1.0f ? 1.0f : (s < -1.0f ? -1.0f : s);
-    const float ct = sqrtf(1.0f - s * s);
-    if (fabsf(mca_atan2f(s, ct)) > att->cfg.max_tilt_obs_rad) { /* the pitch of q_d, as asin(s) */
+    if (fabsf(s) > att->sin_max_tilt) { /* |pitch of q_d| > max_tilt_obs: sin is monotonic there */
         return MCA_ERR_BAD_ARG;
     }
+    const float ct = sqrtf(1.0f - s * s);
     /* The residuals as the angles from the predicted to the measured direction, one atan2 each
      * (phi_m - phi wrapped, theta_m - theta; both pitches lie in (-90, 90) deg):
      * phi_m = atan2(gy, gz), theta_m = atan2(-gx, hypot(gy, gz)). */
@@ -262,6 +312,9 @@ MCA_NOINLINE static mca_status_t gravity_measure(const mca_att_t *att, const flo
     return MCA_OK;
 }
 
+static mca_status_t gravity_update(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4], float g,
+                                   float r_acc, float *ws, mca_update_report_t *rep);
+
 mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4],
                                     float g, float r_acc, float *ws, mca_update_report_t *rep)
 {
@@ -275,6 +328,19 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const floa
     if (!(g > 0.0f) || r_acc < 0.0f) {
         return MCA_ERR_BAD_ARG;
     }
+    return gravity_update(att, f, acc_n, q_d, g, r_acc, ws, rep);
+}
+
+mca_status_t mca_att_gravity_nocheck(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4],
+                                     float g, float r_acc, float *ws)
+{
+    return gravity_update(att, f, acc_n, q_d, g, r_acc, ws, NULL);
+}
+
+/* mca_att_update_gravity after its argument checks */
+static mca_status_t gravity_update(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4], float g,
+                                   float r_acc, float *ws, mca_update_report_t *rep)
+{
     float nu[2], e_rows[6], r;
     const mca_status_t sm = gravity_measure(att, f, acc_n, q_d, g, r_acc, nu, e_rows, &r);
     if (sm != MCA_OK) {
@@ -282,6 +348,9 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const floa
     }
     return euler_update(att, e_rows, 2u, nu, r, q_d, 1, 1, ws, rep);
 }
+
+static mca_status_t yaw_update(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
+                               mca_update_report_t *rep);
 
 mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
                                 mca_update_report_t *rep)
@@ -295,16 +364,28 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
     if (!(r > 0.0f)) {
         return MCA_ERR_BAD_ARG;
     }
-    float eul[3];
-    mca_quat_to_euler_part(eul, q_d, 6u); /* pitch (the tilt gate) and yaw */
-    if (fabsf(eul[1]) > att->cfg.max_tilt_obs_rad) {
-        return MCA_ERR_BAD_ARG;
-    }
+    return yaw_update(att, psi_m, r, q_d, ws, rep);
+}
+
+mca_status_t mca_att_yaw_nocheck(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws)
+{
+    return yaw_update(att, psi_m, r, q_d, ws, NULL);
+}
+
+/* mca_att_update_yaw after its argument checks */
+static mca_status_t yaw_update(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
+                               mca_update_report_t *rep)
+{
     /* d psi / d(body error angles) = [0, sin(phi), cos(phi)] / cos(theta) = [0, c32, c33] /
      * cos^2(theta) with c32 = sin(phi) cos(theta), c33 = cos(phi) cos(theta) from the last row of
      * C_nb(q_d), cos^2(theta) = c32^2 + c33^2: the same row without trigonometry (ALGORITHMS.md 7) */
     float d[3];
-    down_in_body(d, q_d); /* d[1] = c32, d[2] = c33 */
+    down_in_body(d, q_d); /* d[0] = -sin(theta), d[1] = c32, d[2] = c33 */
+    if (fabsf(d[0]) > att->sin_max_tilt) { /* |pitch of q_d| > max_tilt_obs */
+        return MCA_ERR_BAD_ARG;
+    }
+    float eul[3];
+    mca_quat_to_euler_part(eul, q_d, 4u); /* yaw */
     const float k = 1.0f / (d[1] * d[1] + d[2] * d[2]);
     const float e_row[3] = {0.0f, d[1] * k, d[2] * k};
     const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};

@@ -1,5 +1,6 @@
 /* Navigation top level (DESIGN.md 4, docs/ALGORITHMS.md 8). See mca_nav.h. */
 #include "mcahrs/mca_nav.h"
+#include "mca_att_nocheck.h"
 #include "mca_cold.h"
 
 #include <math.h>
@@ -294,8 +295,8 @@ static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const
         nav->n_grav_skip++;
         return MCA_OK;
     }
-    const mca_status_t st = mca_att_update_gravity(&nav->att, e->f_b_mps2, acc_n, q_d != NULL ? q_d : e->q_nb,
-                                                   nav->g_mps2, r_acc, nav->ws, NULL);
+    const mca_status_t st = mca_att_gravity_nocheck(&nav->att, e->f_b_mps2, acc_n, q_d != NULL ? q_d : e->q_nb,
+                                                    nav->g_mps2, r_acc, nav->ws);
     if (st == MCA_OK) {
         nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
         nav->n_grav_obs++;
@@ -318,7 +319,7 @@ static void gravity_skip(mca_nav_t *nav)
 /* Yaw observation, or the alignment when yaw was never observed (ALGORITHMS.md 7). */
 static mca_status_t yaw_obs(mca_nav_t *nav, float psi_m, float r, const float q_d[4])
 {
-    const mca_status_t st = nav->have_yaw_obs ? mca_att_update_yaw(&nav->att, psi_m, r, q_d, nav->ws, NULL)
+    const mca_status_t st = nav->have_yaw_obs ? mca_att_yaw_nocheck(&nav->att, psi_m, r, q_d, nav->ws)
                                               : mca_att_align_yaw(&nav->att, psi_m, r);
     if (st == MCA_OK) {
         nav->t_lastyaw_us = nav->t_imu_us;
@@ -439,9 +440,16 @@ static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
     const uint8_t mode = nav->cfg.comp_mode;
     if (mode == MCA_COMP_CS && nav->have_fix) {
         const float age = span_s(nav->t_lastfix_us, t_us);
+        /* the decay exp(-age / tau_a) of each axis, computed again only when tau_a changes (N
+         * and E share cs_h's; the presets give D the same) */
+        float tau_prev = 0.0f, d = 0.0f;
         for (size_t i = 0; i < 3u; ++i) {
             const float tau = i < 2u ? nav->cfg.cs_h.tau_a_s : nav->cfg.cs_v.tau_a_s;
-            acc[i] = age <= 4.0f * tau ? nav->acc_comp_n[i] * mca_expf(-age / tau) : 0.0f;
+            if (tau < tau_prev || tau > tau_prev) {
+                d = age <= 4.0f * tau ? mca_expf(-age / tau) : 0.0f;
+                tau_prev = tau;
+            }
+            acc[i] = d > 0.0f ? nav->acc_comp_n[i] * d : 0.0f;
         }
     }
     if (mode != MCA_COMP_OFF && nav->cfg.nogps_centripetal && nav->have_fix && (nav->prev_vel_mask & 3u) == 3u) {
@@ -509,7 +517,7 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], con
         accumulate_alignment(nav, gyro, accel, dt_us);
         return MCA_OK;
     }
-    (void)mca_att_propagate(&nav->att, gyro, dt); /* inputs checked above */
+    mca_att_propagate_nocheck(&nav->att, gyro, dt); /* inputs checked above */
     hist_accumulate(nav, accel, dt_us, saturated);
     if (gps_lost(nav, t_us) && t_us - nav->t_lastgrav_us >= us(nav->cfg.grav_period_s)) {
         nav_nogps_observation(nav, gyro);

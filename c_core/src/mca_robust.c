@@ -2,6 +2,7 @@
  * sections 1 and 5). See mca_robust.h. */
 #include "mcahrs/mca_robust.h"
 #include "mca_cold.h"
+#include "mca_kf_rows.h"
 
 #include <math.h>
 #include <string.h>
@@ -635,8 +636,9 @@ static int r_diagonal(const float *r, size_t m)
  * each value written twice (mirrored into the lower triangle), k = u inv. In place (xn = xs,
  * pn = ps) a mirrored write is below the diagonal, never read later by this row. Returns the
  * sum of v * 0 over the values written (NaN after a non-finite one). Its own function: the
- * inner loop keeps its five pointers in registers (inlined into apply_rows, it spilled). */
-MCA_NOINLINE static float row_apply(const float *xs, const float *ps, float *xn, float *pn, const float *u,
+ * inner loop keeps its five pointers in registers (inlined into apply_rows, it spilled). The
+ * attitude filter's plain rows call it too (mca_att.c; declared in mca_kf_rows.h). */
+MCA_NOINLINE float mca_kf_row_apply(const float *xs, const float *ps, float *xn, float *pn, const float *u,
                                     size_t n, float inv, float nu)
 {
     float fin = 0.0f;
@@ -721,14 +723,14 @@ MCA_NOINLINE static mca_status_t apply_rows(float *x, float *p, size_t n, const 
         }
         const float inv = 1.0f / s, nu = z[row] - hx;
         t_sum += nu * (nu * inv);
-        if (gains != NULL) { /* row_apply's gain, the same product */
+        if (gains != NULL) { /* mca_kf_row_apply's gain, the same product */
             for (size_t i = 0; i < n; ++i) {
                 gains[i] = u[i] * inv;
             }
             gains[n] = inv;
             gains += n + 1u;
         }
-        fin += row_apply(xs, ps, xn, pn, u, n, inv, nu);
+        fin += mca_kf_row_apply(xs, ps, xn, pn, u, n, inv, nu);
         xs = xn;
         ps = pn;
     }
@@ -799,6 +801,18 @@ mca_status_t mca_kf_test_stat(const float *nu_t, const float *c_t, size_t m, flo
     return test_stat(nu_t, c_t, ws, ws + m * m, ws + 2u * m * m, m, t_stat);
 }
 
+MCA_NOINLINE void mca_kf_plain_memory(mca_robust_state_t *rs, size_t m, float t_stat)
+{
+    if (rs != NULL) {
+        rs->n_reject = 0u;
+        for (size_t i = 0; i < m; ++i) {
+            rs->n_removed[i] = 0u;
+        }
+        rs->t_stat = t_stat;
+        rs->detected = 0u;
+    }
+}
+
 /* Plain mode, diagonal R, no report: the rows one by one (apply_rows), T from them or from the
  * test innovation, and the memory's counters as the general path leaves them in plain mode.
  * ws in the general layout. */
@@ -826,17 +840,7 @@ MCA_NOINLINE static mca_status_t update_plain_rows(float *x, float *p, size_t n,
     if (st != MCA_OK) {
         return st;
     }
-    if (nu_t == NULL) {
-        t_stat = t_rows;
-    }
-    if (rs != NULL) {
-        rs->n_reject = 0u;
-        for (size_t i = 0; i < m; ++i) {
-            rs->n_removed[i] = 0u;
-        }
-        rs->t_stat = t_stat;
-        rs->detected = 0u;
-    }
+    mca_kf_plain_memory(rs, m, nu_t == NULL ? t_rows : t_stat);
     return MCA_OK;
 }
 

@@ -31,6 +31,9 @@ typedef struct {
     float p[MCA_ATT_NX * MCA_ATT_NX];  /**< error-state covariance [dtheta, db] */
     mca_robust_state_t rs;             /**< robust memory of the roll/pitch observation */
     mca_att_config_t cfg;
+    float sin_max_tilt;                /**< sin(cfg.max_tilt_obs_rad), set by mca_att_init: the
+                                            tilt gates compare sin(pitch), which the rows need
+                                            anyway, instead of taking the pitch */
 } mca_att_t;
 
 /** Defaults of ALGORITHMS.md 7 (yaw0 for a filter without a yaw source). */

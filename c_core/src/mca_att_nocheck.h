@@ -1,0 +1,23 @@
+/* Private to the core sources: the attitude filter's steps without their argument checks, for
+ * the navigation filter (mca_nav.c). Its inputs are checked once where they enter (an IMU
+ * sample, a fix, a magnetometer sample) or are its own finite state, so checking them again
+ * in every step would only cost instructions. For valid arguments each gives the public
+ * function's result (report NULL); the public function is the check, then this. */
+#ifndef MCA_ATT_NOCHECK_H
+#define MCA_ATT_NOCHECK_H
+
+#include "mcahrs/mca_att.h"
+
+/* mca_att_propagate with gyro finite and dt finite, > 0 */
+void mca_att_propagate_nocheck(mca_att_t *att, const float gyro_b_rps[3], float dt_s);
+
+/* mca_att_update_gravity with every argument non-NULL and finite, g > 0, r_acc >= 0, no report.
+ * A non-finite f, acc_n or q_d that reached it anyway is still refused (the |g_b| gate refuses a
+ * NaN; the update's own check refuses a non-finite result) and changes nothing. */
+mca_status_t mca_att_gravity_nocheck(mca_att_t *att, const float f_b_mps2[3], const float acc_n_mps2[3],
+                                     const float q_d[4], float g_mps2, float r_acc_rad2, float *ws);
+
+/* mca_att_update_yaw with every argument non-NULL and finite, r > 0, no report */
+mca_status_t mca_att_yaw_nocheck(mca_att_t *att, float psi_m, float r_rad2, const float q_d[4], float *ws);
+
+#endif /* MCA_ATT_NOCHECK_H */
