@@ -337,6 +337,17 @@ mca_status_t mca_att_gravity_nocheck(mca_att_t *att, const float f[3], const flo
     return gravity_update(att, f, acc_n, q_d, g, r_acc, ws, NULL);
 }
 
+mca_status_t mca_att_gravity_measure_nocheck(const mca_att_t *att, const float f[3], const float acc_n[3], float g,
+                                             float r_acc, float nu[2], float e_rows[6], float *r)
+{
+    return gravity_measure(att, f, acc_n, att->q_nb, g, r_acc, nu, e_rows, r);
+}
+
+mca_status_t mca_att_gravity_apply_nocheck(mca_att_t *att, const float nu[2], const float e_rows[6], float r, float *ws)
+{
+    return euler_update(att, e_rows, 2u, nu, r, att->q_nb, 1, 1, ws, NULL);
+}
+
 /* mca_att_update_gravity after its argument checks */
 static mca_status_t gravity_update(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4], float g,
                                    float r_acc, float *ws, mca_update_report_t *rep)

@@ -17,6 +17,15 @@ void mca_att_propagate_nocheck(mca_att_t *att, const float gyro_b_rps[3], float 
 mca_status_t mca_att_gravity_nocheck(mca_att_t *att, const float f_b_mps2[3], const float acc_n_mps2[3],
                                      const float q_d[4], float g_mps2, float r_acc_rad2, float *ws);
 
+/* The same observation at the current attitude (q_d = att's q_nb) in two parts, so a caller can
+ * spread its cost over two calls: the measurement (residuals nu, rows e_rows at q_nb, R = r I;
+ * MCA_ERR_BAD_ARG from a gate, nothing written to att), then the update. Together they equal
+ * mca_att_gravity_nocheck when att does not change between them. */
+mca_status_t mca_att_gravity_measure_nocheck(const mca_att_t *att, const float f_b_mps2[3], const float acc_n_mps2[3],
+                                             float g_mps2, float r_acc_rad2, float nu[2], float e_rows[6], float *r);
+mca_status_t mca_att_gravity_apply_nocheck(mca_att_t *att, const float nu[2], const float e_rows[6], float r,
+                                           float *ws);
+
 /* mca_att_update_yaw with every argument non-NULL and finite, r > 0, no report */
 mca_status_t mca_att_yaw_nocheck(mca_att_t *att, float psi_m, float r_rad2, const float q_d[4], float *ws);
 

@@ -278,11 +278,13 @@ static const mca_hist_entry_t *hist_newest(const mca_nav_t *nav)
     return &nav->hist[(nav->hist_head + MCA_HIST_LEN - 1u) % MCA_HIST_LEN];
 }
 
+/* mca_nav_t.grav_pending */
+enum { GRAV_NONE = 0, GRAV_UPDATE = 1, GRAV_SKIP = 2, GRAV_NO_HIST = 3 };
+
 /* One roll/pitch observation from a history entry; counts and flags. */
 /* No report: its 212 B would sit on the deepest stack chain; T is read from the attitude
  * filter's robust memory instead. */
-static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const float q_d[4], const float acc_n[3],
-                                float r_acc)
+static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const float acc_n[3], float r_acc)
 {
     if (e == NULL) {
         nav->flags |= MCA_FLAG_HIST_MISS | MCA_FLAG_GRAV_SKIPPED;
@@ -295,8 +297,7 @@ static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const
         nav->n_grav_skip++;
         return MCA_OK;
     }
-    const mca_status_t st = mca_att_gravity_nocheck(&nav->att, e->f_b_mps2, acc_n, q_d != NULL ? q_d : e->q_nb,
-                                                    nav->g_mps2, r_acc, nav->ws);
+    const mca_status_t st = mca_att_gravity_nocheck(&nav->att, e->f_b_mps2, acc_n, e->q_nb, nav->g_mps2, r_acc, nav->ws);
     if (st == MCA_OK) {
         nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
         nav->n_grav_obs++;
@@ -465,7 +466,40 @@ static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
     }
     const float g = nav->g_mps2, sa = nav->cfg.cs_h.sigma_a0_mps2;
     const float r_acc = nav->cfg.nogps_rp_var_rad2 + sa * sa * nav->cfg.cs_h.tau_a_s / (g * g * nav->cfg.grav_period_s);
-    (void)gravity_obs(nav, hist_newest(nav), nav->att.q_nb, acc, r_acc);
+    /* the measurement now, the update at the start of the next call (grav_complete): the two
+     * halves of the observation in two IMU steps */
+    const mca_hist_entry_t *e = hist_newest(nav);
+    if (e == NULL) {
+        nav->grav_pending = GRAV_NO_HIST;
+    } else if (e->saturated || mca_att_gravity_measure_nocheck(&nav->att, e->f_b_mps2, acc, g, r_acc, nav->grav_nu,
+                                                               nav->grav_rows, &nav->grav_r) != MCA_OK) {
+        nav->grav_pending = GRAV_SKIP;
+    } else {
+        nav->grav_pending = GRAV_UPDATE;
+    }
+}
+
+/* The no-GPS observation the last IMU step made (ALGORITHMS.md 8, IMU step 6), completed before
+ * this call changes anything: the attitude is still the one it was measured at. Counts and
+ * flags as gravity_obs. */
+MCA_NOINLINE static void grav_complete(mca_nav_t *nav)
+{
+    const uint8_t pending = nav->grav_pending;
+    nav->grav_pending = GRAV_NONE;
+    if (pending == GRAV_NO_HIST) {
+        nav->flags |= MCA_FLAG_HIST_MISS;
+        gravity_skip(nav);
+        return;
+    }
+    nav->flags &= ~(uint32_t)MCA_FLAG_HIST_MISS;
+    if (pending == GRAV_UPDATE &&
+        mca_att_gravity_apply_nocheck(&nav->att, nav->grav_nu, nav->grav_rows, nav->grav_r, nav->ws) == MCA_OK) {
+        nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
+        nav->n_grav_obs++;
+        nav->last_rp_t = nav->att.rs.t_stat;
+        return;
+    }
+    gravity_skip(nav); /* a gate, a saturated entry or a failed update */
 }
 
 mca_status_t mca_imu_clock_step(uint64_t *t_last_us, uint64_t *t_first_us, uint8_t *have, uint64_t t_us,
@@ -500,6 +534,9 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], con
 {
     if (nav == NULL || gyro == NULL || accel == NULL) {
         return MCA_ERR_NULL;
+    }
+    if (nav->grav_pending != GRAV_NONE) {
+        grav_complete(nav); /* the last IMU step's observation, whatever this call's inputs */
     }
     uint32_t dt_us;
     const mca_status_t sc = mca_imu_clock_step(&nav->t_imu_us, &nav->t_first_us, &nav->have_imu, t_us, gyro, accel,
@@ -664,7 +701,7 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
     if (observe && excluded) {
         gravity_skip(nav);
     } else if (observe) {
-        (void)gravity_obs(nav, e, NULL, acc, r_acc); /* failures are counted skips */
+        (void)gravity_obs(nav, e, acc, r_acc); /* failures are counted skips */
     }
     /* the course observation does not depend on the roll/pitch attempt (GPS step 6) */
     if (nav->aligned && !flagged) {
@@ -696,6 +733,9 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
 {
     if (nav == NULL || fix == NULL) {
         return MCA_ERR_NULL;
+    }
+    if (nav->grav_pending != GRAV_NONE) {
+        grav_complete(nav); /* the last IMU step's observation, whatever this call's inputs */
     }
     mca_fix_view_t fv;
     const mca_status_t sf =
@@ -741,6 +781,9 @@ mca_status_t mca_nav_mag(mca_nav_t *nav, uint64_t t_us, const float mag_b[3])
 {
     if (nav == NULL || mag_b == NULL) {
         return MCA_ERR_NULL;
+    }
+    if (nav->grav_pending != GRAV_NONE) {
+        grav_complete(nav); /* the last IMU step's observation, whatever this call's inputs */
     }
     if (!mca_all_finite(mag_b, 3u)) {
         return MCA_ERR_NONFINITE;

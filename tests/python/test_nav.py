@@ -414,3 +414,41 @@ def test_a_fix_the_cs_robust_mode_flags_feeds_no_attitude_observation() -> None:
                 int(fx["fix_type"]))
         moved[label] = int(nav._nav.t_lastyaw_us) != before
     assert moved == {"fta": False, "plain": True}
+
+
+def test_nogps_observation_completes_at_the_next_call() -> None:
+    """ALGORITHMS.md 8, IMU step 6: the IMU step that makes a no-GPS observation only measures
+    (nothing counted, the attitude as propagated); the next call applies it before anything else,
+    also a call whose input is refused, which then changes nothing more."""
+    cfg = core.nav_config("multirotor")
+    nav = core.Nav(cfg)
+    tilt = 0.2  # rad of roll the still alignment sees; the gyro rate then tilts the estimate away
+    f = np.array([0.0, -9.80665 * math.sin(tilt), -9.80665 * math.cos(tilt)])
+    w = np.array([0.01, -0.02, 0.005])
+    t, dt = 1_000_000, 2500
+    made = completed_by_refused = 0
+    for _ in range(4000):
+        t += dt
+        before = nav.output()
+        nav.imu(t, w, f)
+        after = nav.output()
+        if int(nav._nav.grav_pending) == 0:
+            continue
+        made += 1
+        assert (after["n_grav_obs"], after["n_grav_skip"]) == (before["n_grav_obs"], before["n_grav_skip"])
+        q_half = np.array(after["q_nb"])
+        if made % 2 == 1:
+            with pytest.raises(errors.TimeBackwardsError):
+                nav.imu(t, w, f)  # refused: completes the observation, no propagation
+            done = nav.output()
+            completed_by_refused += 1
+            assert done["t_us"] == after["t_us"]
+            assert not np.array_equal(np.array(done["q_nb"]), q_half), "the update did not move q"
+        else:
+            t += dt
+            nav.imu(t, w, f)
+            done = nav.output()
+        assert int(nav._nav.grav_pending) == 0
+        assert done["n_grav_obs"] + done["n_grav_skip"] == after["n_grav_obs"] + after["n_grav_skip"] + 1
+        assert done["n_grav_obs"] == after["n_grav_obs"] + 1, "a still, level-ish sample must be observed"
+    assert made >= 8 and completed_by_refused >= 4, f"{made} no-GPS observations made"

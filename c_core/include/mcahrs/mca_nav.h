@@ -135,7 +135,13 @@ typedef struct {
     uint8_t have_fix;
     uint8_t have_mag_obs;
     uint8_t have_yaw_obs;
+    uint8_t grav_pending;    /**< no-GPS observation made by the last IMU step, completed at the
+                                  start of the next call (ALGORITHMS.md 8, IMU step 6): 0 none,
+                                  1 update with grav_nu/rows/r, 2 skipped, 3 skipped (no history) */
     uint32_t flags;          /**< sticky/last-event bits, MCA_FLAG_* */
+    float grav_nu[2];        /**< the pending observation's residuals, rows (at q_nb) and R */
+    float grav_rows[6];
+    float grav_r;
     float last_rp_t;
     float last_gps_t[3];
     uint32_t n_grav_obs;
@@ -203,12 +209,15 @@ mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg);
 
 /**
  * IMU step (ALGORITHMS.md 8). Cost: one attitude propagation plus, every history interval, an
- * entry push; without GPS, a gravity observation every grav_period. On the Cortex-M4F (-Os with
- * LTO, scripts/fw_report.py): 886 instructions mean, 1.4k max without an observation, 4.0k
- * with the no-GPS gravity observation.
- * @return MCA_ERR_NONFINITE, MCA_ERR_TIME_BACKWARDS (unchanged), MCA_ERR_BAD_DT (time
- *         re-anchored, nothing else changed), or the status of a no-GPS observation that
- *         failed numerically (MCA_ERR_SINGULAR), else MCA_OK.
+ * entry push; without GPS, a gravity observation every grav_period, made in one step and
+ * completed (its update, counters and flags) at the start of the next IMU, GPS or magnetometer
+ * call, whatever that call's inputs (IMU step 6: the same filter; the output read right after
+ * the first half does not show the update yet). On the Cortex-M4F (-Os with LTO,
+ * scripts/fw_report.py): 849 instructions mean, 1.4k max without an observation, 1.6k and 2.3k
+ * for its two halves.
+ * @return MCA_ERR_NONFINITE, MCA_ERR_TIME_BACKWARDS (unchanged but for the completed pending
+ *         observation), MCA_ERR_BAD_DT (time re-anchored, nothing else changed), else MCA_OK
+ *         (a no-GPS observation that fails counts as skipped).
  */
 mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro_b_rps[3], const float accel_b_mps2[3]);
 
@@ -216,8 +225,8 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro_b_rps[3
  * GPS step (ALGORITHMS.md 8): CS predict + update, then the gravity observation. A fix the
  * CS robust mode flags (GPS step 6) gives no course observation, and no roll/pitch observation
  * is made from it or for tau_a after it (counted as skipped).
- * Cost on the Cortex-M4F (-Os with LTO, scripts/fw_report.py): 10.8k instructions mean, 13.2k
- * max (11.1k mean at -O2): about two thirds the CS predict with the IMU-aided test prior and the
+ * Cost on the Cortex-M4F (-Os with LTO, scripts/fw_report.py): 9.9k instructions mean, 11.8k
+ * max: about two thirds the CS predict with the IMU-aided test prior and the
  * three axis updates (N and E sharing one covariance update, mca_cs3_update), a fifth the
  * roll/pitch update, the rest the course update, geodesy and history look-ups
  * (scripts/fw_profile.py); stack 928 B worst case (the steps keep no update report on the

@@ -431,6 +431,8 @@ class Nav:
         self.a_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
         # observation timers
         self.t_grav_us = 0  # last lost-GPS roll/pitch attempt
+        # a lost-GPS observation made by the last IMU step, completed by the next call
+        self.grav_pending: tuple[HistEntry | None, tuple[float, float, float], float] | None = None
         self.t_mag_us: int | None = None  # last magnetometer observation attempt
         self.t_yaw_us: int | None = None  # IMU time of the last yaw observation made
         # reports and flags
@@ -448,6 +450,7 @@ class Nav:
     # ----------------------------------------------------------------------------------
     def imu(self, t_us: int, gyro_rps: Any, accel_mps2: Any) -> None:
         """IMU step (ALGORITHMS.md 8). Raises NonFiniteError, TimeBackwardsError, BadDtError."""
+        self._complete_pending()
         t_us = int(t_us)
         w = _finite3(gyro_rps)
         f = _finite3(accel_mps2)
@@ -641,7 +644,16 @@ class Nav:
             self.g**2 * cfg.grav_period_s
         )
         entry = self.hist[-1] if self.hist else None
-        self._roll_pitch(entry, (float(a_n[0]), float(a_n[1]), float(a_n[2])), r_acc, self.q)
+        # made now, completed at the start of the next call (before it changes anything, so at this
+        # same attitude q): the firmware spreads the observation over two IMU steps
+        self.grav_pending = (entry, (float(a_n[0]), float(a_n[1]), float(a_n[2])), r_acc)
+
+    def _complete_pending(self) -> None:
+        """The lost-GPS observation of the last IMU step (ALGORITHMS.md 8, IMU step 6)."""
+        if self.grav_pending is not None:
+            entry, a_n, r_acc = self.grav_pending
+            self.grav_pending = None
+            self._roll_pitch(entry, a_n, r_acc, self.q)
 
     # ----------------------------------------------------------------------------------
     # GPS step
@@ -670,8 +682,10 @@ class Nav:
         """GPS step (ALGORITHMS.md 8). ``fix``: a GnssFix or a GNSS_DTYPE record.
 
         Raises BadArgError (fix_type < 2), RangeError, NonFiniteError (velocity flagged present
-        but not finite), TimeBackwardsError, and whatever the CS update raises; state unchanged.
+        but not finite), TimeBackwardsError, and whatever the CS update raises; state unchanged
+        (but for the pending observation of the last IMU step, completed first).
         """
+        self._complete_pending()
         cfg = self.cfg
         fx = self._parse_fix(fix)
         has_ne = bool(fx.flags & GNSS_HAS_VEL_NE)
@@ -859,6 +873,7 @@ class Nav:
     # ----------------------------------------------------------------------------------
     def mag(self, t_us: int, mag_b: Any) -> None:
         """Magnetometer step (ALGORITHMS.md 8). Raises NonFiniteError."""
+        self._complete_pending()
         m = _finite3(mag_b)
         if not all(math.isfinite(v) for v in m):
             raise NonFiniteError("magnetometer sample not finite")
