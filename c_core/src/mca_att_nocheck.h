@@ -26,7 +26,9 @@ mca_status_t mca_att_gravity_measure_nocheck(const mca_att_t *att, const float f
 mca_status_t mca_att_gravity_apply_nocheck(mca_att_t *att, const float nu[2], const float e_rows[6], float r,
                                            float *ws);
 
-/* mca_att_update_yaw with every argument non-NULL and finite, r > 0, no report */
+/* mca_att_update_yaw with every argument non-NULL and finite, r > 0, no report (a non-finite
+ * q_d is still refused through the update's check; a non-finite psi_m would be a zero residual,
+ * mca_wrap_pi, so the caller keeps it out) */
 mca_status_t mca_att_yaw_nocheck(mca_att_t *att, float psi_m, float r_rad2, const float q_d[4], float *ws);
 
 #endif /* MCA_ATT_NOCHECK_H */
