@@ -175,8 +175,9 @@ static void down_in_body(float d[3], const float q[4])
  * (ALGORITHMS.md 1), R = r I. The rows h_k = [e'_k, 0 0 0] touch only the attitude columns, so
  * u = P h_k^T reads P's first three columns (rows, P symmetric) and s three of its values; the
  * row's x and P step is the CS filter's (mca_kf_row_apply); dx starts zero. The first row
- * reads P and writes ws, the second works there; P is written only when every s is positive and every value of
- * dx and P+ finite. The memory (rs, NULL for none) ends as mca_kf_update's plain path leaves it. */
+ * reads P and writes ws, the second works there; P is written only when every s is positive
+ * and every value of dx and P+ is finite. The memory (rs, NULL for none) ends as
+ * mca_kf_update's plain path leaves it. */
 MCA_NOINLINE static mca_status_t att_update_plain(mca_att_t *att, const float *h, size_t m, const float *nu,
                                                   float r, float dx[MCA_ATT_NX], float *ws,
                                                   mca_robust_state_t *rs)
@@ -312,8 +313,17 @@ MCA_NOINLINE static mca_status_t gravity_measure(const mca_att_t *att, const flo
     return MCA_OK;
 }
 
+/* mca_att_update_gravity after its argument checks */
 static mca_status_t gravity_update(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4], float g,
-                                   float r_acc, float *ws, mca_update_report_t *rep);
+                                   float r_acc, float *ws, mca_update_report_t *rep)
+{
+    float nu[2], e_rows[6], r;
+    const mca_status_t sm = gravity_measure(att, f, acc_n, q_d, g, r_acc, nu, e_rows, &r);
+    if (sm != MCA_OK) {
+        return sm;
+    }
+    return euler_update(att, e_rows, 2u, nu, r, q_d, 1, 1, ws, rep);
+}
 
 mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4],
                                     float g, float r_acc, float *ws, mca_update_report_t *rep)
@@ -348,20 +358,25 @@ mca_status_t mca_att_gravity_apply_nocheck(mca_att_t *att, const float nu[2], co
     return euler_update(att, e_rows, 2u, nu, r, att->q_nb, 1, 1, ws, NULL);
 }
 
-/* mca_att_update_gravity after its argument checks */
-static mca_status_t gravity_update(mca_att_t *att, const float f[3], const float acc_n[3], const float q_d[4], float g,
-                                   float r_acc, float *ws, mca_update_report_t *rep)
-{
-    float nu[2], e_rows[6], r;
-    const mca_status_t sm = gravity_measure(att, f, acc_n, q_d, g, r_acc, nu, e_rows, &r);
-    if (sm != MCA_OK) {
-        return sm;
-    }
-    return euler_update(att, e_rows, 2u, nu, r, q_d, 1, 1, ws, rep);
-}
-
+/* mca_att_update_yaw after its argument checks */
 static mca_status_t yaw_update(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
-                               mca_update_report_t *rep);
+                               mca_update_report_t *rep)
+{
+    /* d psi / d(body error angles) = [0, sin(phi), cos(phi)] / cos(theta) = [0, c32, c33] /
+     * cos^2(theta) with c32 = sin(phi) cos(theta), c33 = cos(phi) cos(theta) from the last row of
+     * C_nb(q_d), cos^2(theta) = c32^2 + c33^2: the same row without trigonometry (ALGORITHMS.md 7) */
+    float d[3];
+    down_in_body(d, q_d); /* d[0] = -sin(theta), d[1] = c32, d[2] = c33 */
+    if (fabsf(d[0]) > att->sin_max_tilt) { /* |pitch of q_d| > max_tilt_obs */
+        return MCA_ERR_BAD_ARG;
+    }
+    float eul[3];
+    mca_quat_to_euler_part(eul, q_d, 4u); /* yaw */
+    const float k = 1.0f / (d[1] * d[1] + d[2] * d[2]);
+    const float e_row[3] = {0.0f, d[1] * k, d[2] * k};
+    const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};
+    return euler_update(att, e_row, 1u, nu, r, q_d, 0, 0, ws, rep);
+}
 
 mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
                                 mca_update_report_t *rep)
@@ -381,26 +396,6 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
 mca_status_t mca_att_yaw_nocheck(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws)
 {
     return yaw_update(att, psi_m, r, q_d, ws, NULL);
-}
-
-/* mca_att_update_yaw after its argument checks */
-static mca_status_t yaw_update(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
-                               mca_update_report_t *rep)
-{
-    /* d psi / d(body error angles) = [0, sin(phi), cos(phi)] / cos(theta) = [0, c32, c33] /
-     * cos^2(theta) with c32 = sin(phi) cos(theta), c33 = cos(phi) cos(theta) from the last row of
-     * C_nb(q_d), cos^2(theta) = c32^2 + c33^2: the same row without trigonometry (ALGORITHMS.md 7) */
-    float d[3];
-    down_in_body(d, q_d); /* d[0] = -sin(theta), d[1] = c32, d[2] = c33 */
-    if (fabsf(d[0]) > att->sin_max_tilt) { /* |pitch of q_d| > max_tilt_obs */
-        return MCA_ERR_BAD_ARG;
-    }
-    float eul[3];
-    mca_quat_to_euler_part(eul, q_d, 4u); /* yaw */
-    const float k = 1.0f / (d[1] * d[1] + d[2] * d[2]);
-    const float e_row[3] = {0.0f, d[1] * k, d[2] * k};
-    const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};
-    return euler_update(att, e_row, 1u, nu, r, q_d, 0, 0, ws, rep);
 }
 
 mca_status_t mca_att_align_yaw(mca_att_t *att, float psi_m, float r)

@@ -281,40 +281,43 @@ static const mca_hist_entry_t *hist_newest(const mca_nav_t *nav)
 /* mca_nav_t.grav_pending */
 enum { GRAV_NONE = 0, GRAV_UPDATE = 1, GRAV_SKIP = 2, GRAV_NO_HIST = 3 };
 
-/* One roll/pitch observation from a history entry; counts and flags. */
-/* No report: its 212 B would sit on the deepest stack chain; T is read from the attitude
- * filter's robust memory instead. */
-static mca_status_t gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const float acc_n[3], float r_acc)
-{
-    if (e == NULL) {
-        nav->flags |= MCA_FLAG_HIST_MISS | MCA_FLAG_GRAV_SKIPPED;
-        nav->n_grav_skip++;
-        return MCA_OK;
-    }
-    nav->flags &= ~(uint32_t)MCA_FLAG_HIST_MISS;
-    if (e->saturated) {
-        nav->flags |= MCA_FLAG_GRAV_SKIPPED;
-        nav->n_grav_skip++;
-        return MCA_OK;
-    }
-    const mca_status_t st = mca_att_gravity_nocheck(&nav->att, e->f_b_mps2, acc_n, e->q_nb, nav->g_mps2, r_acc, nav->ws);
-    if (st == MCA_OK) {
-        nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
-        nav->n_grav_obs++;
-        nav->last_rp_t = nav->att.rs.t_stat;
-        return MCA_OK;
-    }
-    /* a gate or a failed update: skipped, not an error of the caller (ALGORITHMS.md 8) */
-    nav->flags |= MCA_FLAG_GRAV_SKIPPED;
-    nav->n_grav_skip++;
-    return MCA_OK;
-}
-
 /* A skipped observation attempt (no usable input). */
 static void gravity_skip(mca_nav_t *nav)
 {
     nav->flags |= MCA_FLAG_GRAV_SKIPPED;
     nav->n_grav_skip++;
+}
+
+/* The counters and flags of a roll/pitch observation attempt: no history entry (hist_miss), or
+ * the status of its update (a saturated entry, a gate or a failed update: skipped, not an error
+ * of the caller, ALGORITHMS.md 8). */
+static void gravity_done(mca_nav_t *nav, int hist_miss, mca_status_t st)
+{
+    if (hist_miss) {
+        nav->flags |= MCA_FLAG_HIST_MISS;
+        gravity_skip(nav);
+        return;
+    }
+    nav->flags &= ~(uint32_t)MCA_FLAG_HIST_MISS;
+    if (st != MCA_OK) {
+        gravity_skip(nav);
+        return;
+    }
+    nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
+    nav->n_grav_obs++;
+    nav->last_rp_t = nav->att.rs.t_stat;
+}
+
+/* One roll/pitch observation from a history entry, at its attitude; counts and flags. */
+/* No report: its 212 B would sit on the deepest stack chain; T is read from the attitude
+ * filter's robust memory instead. */
+static void gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const float acc_n[3], float r_acc)
+{
+    const mca_status_t st =
+        e == NULL || e->saturated
+            ? MCA_ERR_BAD_ARG
+            : mca_att_gravity_nocheck(&nav->att, e->f_b_mps2, acc_n, e->q_nb, nav->g_mps2, r_acc, nav->ws);
+    gravity_done(nav, e == NULL, st);
 }
 
 /* Yaw observation, or the alignment when yaw was never observed (ALGORITHMS.md 7). */
@@ -480,26 +483,15 @@ static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
 }
 
 /* The no-GPS observation the last IMU step made (ALGORITHMS.md 8, IMU step 6), completed before
- * this call changes anything: the attitude is still the one it was measured at. Counts and
- * flags as gravity_obs. */
+ * this call changes anything: the attitude is still the one it was measured at. */
 MCA_NOINLINE static void grav_complete(mca_nav_t *nav)
 {
     const uint8_t pending = nav->grav_pending;
     nav->grav_pending = GRAV_NONE;
-    if (pending == GRAV_NO_HIST) {
-        nav->flags |= MCA_FLAG_HIST_MISS;
-        gravity_skip(nav);
-        return;
-    }
-    nav->flags &= ~(uint32_t)MCA_FLAG_HIST_MISS;
-    if (pending == GRAV_UPDATE &&
-        mca_att_gravity_apply_nocheck(&nav->att, nav->grav_nu, nav->grav_rows, nav->grav_r, nav->ws) == MCA_OK) {
-        nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
-        nav->n_grav_obs++;
-        nav->last_rp_t = nav->att.rs.t_stat;
-        return;
-    }
-    gravity_skip(nav); /* a gate, a saturated entry or a failed update */
+    const mca_status_t st = pending == GRAV_UPDATE ? mca_att_gravity_apply_nocheck(&nav->att, nav->grav_nu,
+                                                                                   nav->grav_rows, nav->grav_r, nav->ws)
+                                                   : MCA_ERR_BAD_ARG; /* a gate or a saturated entry */
+    gravity_done(nav, pending == GRAV_NO_HIST, st);
 }
 
 mca_status_t mca_imu_clock_step(uint64_t *t_last_us, uint64_t *t_first_us, uint8_t *have, uint64_t t_us,
@@ -701,7 +693,7 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
     if (observe && excluded) {
         gravity_skip(nav);
     } else if (observe) {
-        (void)gravity_obs(nav, e, acc, r_acc); /* failures are counted skips */
+        gravity_obs(nav, e, acc, r_acc); /* failures are counted skips */
     }
     /* the course observation does not depend on the roll/pitch attempt (GPS step 6) */
     if (nav->aligned && !flagged) {
