@@ -214,7 +214,7 @@ mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg);
  * call, whatever that call's inputs (IMU step 6: the same filter; the output read right after
  * the first half does not show the update yet). On the Cortex-M4F (-Os with LTO,
  * scripts/fw_report.py): 849 instructions mean, 1.4k max without an observation, 1.6k and 2.3k
- * for its two halves.
+ * for its two halves (2342 the longest).
  * @return MCA_ERR_NONFINITE, MCA_ERR_TIME_BACKWARDS (unchanged but for the completed pending
  *         observation), MCA_ERR_BAD_DT (time re-anchored, nothing else changed), else MCA_OK
  *         (a no-GPS observation that fails counts as skipped).
@@ -226,7 +226,7 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro_b_rps[3
  * CS robust mode flags (GPS step 6) gives no course observation, and no roll/pitch observation
  * is made from it or for tau_a after it (counted as skipped).
  * Cost on the Cortex-M4F (-Os with LTO, scripts/fw_report.py): 9.9k instructions mean, 11.8k
- * max: about two thirds the CS predict with the IMU-aided test prior and the
+ * max (10.4k / 12.4k at -O2): about two thirds the CS predict with the IMU-aided test prior and the
  * three axis updates (N and E sharing one covariance update, mca_cs3_update), a fifth the
  * roll/pitch update, the rest the course update, geodesy and history look-ups
  * (scripts/fw_profile.py); stack 928 B worst case (the steps keep no update report on the
