@@ -65,7 +65,12 @@ MCA_COLD void mca_ins_config_default(mca_ins_config_t *c)
     c->mag_period_s = 0.1f;
     c->cog_min_speed_mps = 3.0f;
     c->cog_sigma0_rad = 0.05f;
+    c->gnss_reset_s = 30.0f;
+    c->gnss_block_reset_s = 120.0f;
     mca_robust_config_default(&c->robust);
+    /* the INS dead-reckons on its IMU through rejected fixes: the time guards above replace the
+     * count guard, which the CS filter needs (ALGORITHMS.md 10, GNSS update step 5) */
+    c->robust.reject_reset_n = 0u;
 }
 
 MCA_COLD void mca_ins_config_fixedwing(mca_ins_config_t *c)
@@ -111,7 +116,8 @@ MCA_COLD mca_status_t mca_ins_config_check(const mca_ins_config_t *c)
              pos(c->init_timeout_s) && pos(c->accel_sat_mps2) && pos(c->gps_timeout_s) &&
              pos(c->gps_pos_sigma_m) && pos(c->gps_alt_sigma_m) && pos(c->gps_vel_sigma_mps) &&
              isfinite(c->mag_declination_rad) && pos(c->mag_yaw_sigma_rad) && nonneg(c->mag_period_s) &&
-             nonneg(c->cog_min_speed_mps) && pos(c->cog_sigma0_rad) &&
+             nonneg(c->cog_min_speed_mps) && pos(c->cog_sigma0_rad) && nonneg(c->gnss_reset_s) &&
+             c->gnss_reset_s <= 600.0f && nonneg(c->gnss_block_reset_s) && c->gnss_block_reset_s <= 600.0f &&
              mca_robust_config_check(&c->robust) == MCA_OK;
     /* durations become uint32 microseconds (ALGORITHMS.md 8, Times): keep them far below 71 min */
     ok = ok && c->imu_dt_max_s <= 10.0f && c->init_still_s <= 600.0f && c->init_timeout_s <= 600.0f &&
@@ -136,6 +142,7 @@ MCA_COLD mca_status_t mca_ins_init(mca_ins_t *ins, const mca_ins_config_t *cfg)
     ins->q_nb[0] = 1.0f;
     ins->last_gps_t = NAN; /* no update yet */
     mca_robust_state_init(&ins->rs);
+    mca_robust_state_init(&ins->rs_v);
     return MCA_OK;
 }
 
@@ -981,6 +988,10 @@ static void start_nav(mca_ins_t *ins, const mca_gps_fix_t *fix, const float vel[
     ins->hist_head = 0u;
     ins->hist_count = 0u;
     ins->nav = 1u;
+    mca_robust_state_init(&ins->rs);
+    mca_robust_state_init(&ins->rs_v);
+    ins->t_fuse_pos_us = fix->t_us;
+    ins->t_fuse_vel_us = fix->t_us;
 }
 
 /* Course-over-ground yaw alignment when due (ALGORITHMS.md 10, Yaw); q_fix is turned too. */
@@ -1003,9 +1014,11 @@ static void cog_align(mca_ins_t *ins, const float vel[3], int has_vne, float s_a
 }
 
 /* Rows, innovation and noise of one fix (ALGORITHMS.md 10, GNSS update steps 3-4) into the
- * update scratch of the state. Returns the number of rows. */
+ * update scratch of the state: position rows first (*m_pos of them), then velocity rows; R as
+ * two diagonal blocks one after the other (m_pos x m_pos at upd_r, then the velocity block).
+ * Returns the number of rows. */
 static size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s, const float vel[3],
-                        uint8_t vmask, float h_acc, float v_acc, float s_acc)
+                        uint8_t vmask, float h_acc, float v_acc, float s_acc, size_t *m_pos)
 {
     const int has_alt = (fix->flags & MCA_FIX_ALT) != 0u;
     float ned[3], c[9], cl[3], wl[3], cwl[3], lx[9], clx[9];
@@ -1042,6 +1055,7 @@ static size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_
         var[m] = i < 2u ? h_acc * h_acc : v_acc * v_acc;
         ++m;
     }
+    const size_t mp = m;
     for (size_t i = 0; i < 3u; ++i) {
         if ((vmask & (1u << i)) == 0u) {
             continue;
@@ -1056,10 +1070,100 @@ static size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_
         var[m] = s_acc * s_acc;
         ++m;
     }
-    for (size_t i = 0; i < m; ++i) {
-        r[i * m + i] = var[i];
+    const size_t mv = m - mp;
+    for (size_t i = 0; i < mp; ++i) {
+        r[i * mp + i] = var[i];
     }
+    for (size_t i = 0; i < mv; ++i) {
+        r[mp * mp + i * mv + i] = var[mp + i];
+    }
+    *m_pos = mp;
     return m;
+}
+
+/* One block of GNSS rows (ALGORITHMS.md 10, GNSS update step 5): rows [r0, r0 + mb) of the
+ * scratch with R at rb, applied to the accumulated correction ins->dx in the configured robust
+ * mode with the block's own memory; plain, and the memory cleared, when a lock-up guard fires. */
+static mca_status_t gnss_block(mca_ins_t *ins, size_t r0, size_t mb, const float *rb, mca_robust_state_t *rs,
+                               mca_update_report_t *rep, int guard)
+{
+    static const mca_robust_config_t plain = {0}; /* mode 0, plain: reads no other field */
+    const mca_robust_config_t *rc = guard ? &plain : &ins->cfg.robust;
+    const mca_status_t st = mca_kf_update_tested(ins->dx, ins->p, NX, &ins->upd_h[r0 * NX], &ins->upd_z[r0], rb, mb,
+                                                 rc, rs, NULL, NULL, ins->ws, MCA_INS_WS_LEN, rep);
+    if (st == MCA_OK && guard) {
+        mca_robust_state_init(rs);
+        rep->reset = 1u;
+    }
+    return st;
+}
+
+/* Output flags of one block's report. */
+static uint32_t gnss_block_flags(const mca_update_report_t *rep)
+{
+    return (rep->rejected ? (uint32_t)MCA_INS_FLAG_REJECTED : 0u) |
+           (rep->detected ? (uint32_t)MCA_INS_FLAG_DETECTED : 0u) | (rep->reset ? (uint32_t)MCA_INS_FLAG_RESET : 0u);
+}
+
+/* GNSS update steps 3-7 (ALGORITHMS.md 10): the position block, then the velocity block on the
+ * correction the first left, each in the robust mode with its own memory and lock-up guards by
+ * time; one correction of the state with what both applied. */
+static mca_status_t gnss_update(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s, const float vel[3],
+                                uint8_t vmask, float h_acc, float v_acc, float s_acc)
+{
+    size_t mp = 0u;
+    const size_t m = gnss_rows(ins, fix, s, vel, vmask, h_acc, v_acc, s_acc, &mp);
+    const size_t mv = m - mp;
+    memset(ins->dx, 0, sizeof(ins->dx));
+    const uint64_t t = fix->t_us;
+    const uint64_t t_any = ins->t_fuse_pos_us > ins->t_fuse_vel_us ? ins->t_fuse_pos_us : ins->t_fuse_vel_us;
+    const uint32_t lim_any = us(ins->cfg.gnss_reset_s), lim_blk = us(ins->cfg.gnss_block_reset_s);
+    const int stale_any = lim_any > 0u && t - t_any > lim_any;
+    int applied = 0;
+    float t_sum = 0.0f;
+    uint32_t fl = 0u;
+    mca_status_t st = MCA_OK;
+    if (mp > 0u) {
+        const int guard = stale_any || (lim_blk > 0u && t - ins->t_fuse_pos_us > lim_blk);
+        st = gnss_block(ins, 0u, mp, ins->upd_r, &ins->rs, &ins->rep, guard);
+        if (st == MCA_OK) {
+            t_sum += ins->rep.t_stat;
+            fl |= gnss_block_flags(&ins->rep);
+            if (!ins->rep.rejected) {
+                applied = 1;
+                ins->t_fuse_pos_us = t;
+            }
+        }
+    }
+    if (st == MCA_OK && mv > 0u) {
+        const int guard = stale_any || (lim_blk > 0u && t - ins->t_fuse_vel_us > lim_blk);
+        st = gnss_block(ins, mp, mv, &ins->upd_r[mp * mp], &ins->rs_v, &ins->rep_v, guard);
+        if (st == MCA_OK) {
+            t_sum += ins->rep_v.t_stat;
+            fl |= gnss_block_flags(&ins->rep_v);
+            if (!ins->rep_v.rejected) {
+                applied = 1;
+                ins->t_fuse_vel_us = t;
+            }
+        }
+    }
+    if (applied) {
+        /* a velocity block that failed leaves the position block's P and dx, which stand */
+        correct(ins, ins->dx);
+        ins->n_gps_upd++;
+    }
+    if (st != MCA_OK || (fl & MCA_INS_FLAG_REJECTED) != 0u) {
+        ins->n_gps_rej++;
+    }
+    if (st == MCA_OK || applied) {
+        const uint32_t mask = MCA_INS_FLAG_REJECTED | MCA_INS_FLAG_DETECTED | MCA_INS_FLAG_RESET;
+        ins->flags = (ins->flags & ~mask) | fl;
+    }
+    if (st == MCA_OK) {
+        ins->last_gps_t = t_sum;
+        ins->last_gps_m = (uint32_t)m;
+    }
+    return st;
 }
 
 mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
@@ -1107,23 +1211,9 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
             ins->n_gps_skip++;
         } else {
             ins->flags &= ~(uint32_t)MCA_INS_FLAG_HIST_MISS;
-            const size_t m = gnss_rows(ins, fix, &s, vel, vmask, h_acc, v_acc, s_acc);
-            memset(ins->dx, 0, sizeof(ins->dx));
-            st = mca_kf_update_tested(ins->dx, ins->p, NX, ins->upd_h, ins->upd_z, ins->upd_r, m,
-                                      &ins->cfg.robust, &ins->rs, NULL, NULL, ins->ws, MCA_INS_WS_LEN, &ins->rep);
+            st = gnss_update(ins, fix, &s, vel, vmask, h_acc, v_acc, s_acc);
             if (st != MCA_OK) {
-                ins->n_gps_rej++;
-                return st; /* x, P, memory unchanged by mca_kf_update */
-            }
-            ins->last_gps_t = ins->rep.t_stat;
-            ins->last_gps_m = (uint32_t)m;
-            if (ins->rep.rejected) {
-                ins->flags |= MCA_INS_FLAG_REJECTED;
-                ins->n_gps_rej++;
-            } else {
-                ins->flags &= ~(uint32_t)MCA_INS_FLAG_REJECTED;
-                correct(ins, ins->dx);
-                ins->n_gps_upd++;
+                return st; /* the failed block changed nothing (ALGORITHMS.md 10, GNSS update step 5) */
             }
         }
     }

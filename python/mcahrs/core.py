@@ -694,6 +694,8 @@ INS_FLAG_BITS = {
     "hist_miss": lib.MCA_INS_FLAG_HIST_MISS,
     "rejected": lib.MCA_INS_FLAG_REJECTED,
     "saturated": lib.MCA_INS_FLAG_SATURATED,
+    "detected": lib.MCA_INS_FLAG_DETECTED,
+    "reset": lib.MCA_INS_FLAG_RESET,
 }
 
 INS_OUT_C_DTYPE = struct_dtype("mca_ins_output_t")

@@ -99,6 +99,21 @@ static void test_config(void)
     mca_ins_config_default(&b);
     b.att0_var_rad2 = 0.0f;
     CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
+    mca_ins_config_default(&b);
+    CHECK_EQ_INT(b.robust.reject_reset_n, 0); /* the time guards replace the count guard */
+    b.gnss_reset_s = 0.0f;                    /* guards off: allowed */
+    b.gnss_block_reset_s = 0.0f;
+    CHECK_EQ_INT(mca_ins_config_check(&b), MCA_OK);
+    b.gnss_reset_s = 601.0f;
+    CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
+    mca_ins_config_default(&b);
+    b.gnss_block_reset_s = NAN;
+    CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
+    mca_ins_config_default(&b);
+    b.gnss_block_reset_s = -1.0f;
+    CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
+    mca_ins_config_default(&b);
+    b.att0_var_rad2 = 0.0f;
     /* init with a bad configuration touches nothing */
     memset(&g_ins, 0x5a, sizeof(g_ins));
     memcpy(&g_copy, &g_ins, sizeof(g_ins));

@@ -38,8 +38,10 @@
 #define MCA_INS_FLAG_YAW_ALIGNED 8  /**< yaw known (yaw source none, or first yaw observation made) */
 #define MCA_INS_FLAG_GPS_LOST 16    /**< no fix yet, or none for gps_timeout_s */
 #define MCA_INS_FLAG_HIST_MISS 32   /**< last fix older than the history: skipped */
-#define MCA_INS_FLAG_REJECTED 64    /**< last GNSS update rejected by the robust mode */
+#define MCA_INS_FLAG_REJECTED 64    /**< last GNSS update: a block (position or velocity) rejected */
 #define MCA_INS_FLAG_SATURATED 128  /**< a saturated accelerometer sample was seen (sticky) */
+#define MCA_INS_FLAG_DETECTED 256   /**< last GNSS update: the robust mode detected an outlier in a block */
+#define MCA_INS_FLAG_RESET 512      /**< last GNSS update: a lock-up guard made a block plain */
 
 /** INS configuration (ALGORITHMS.md 10 table). mca_ins_config_default fills it. */
 typedef struct {
@@ -78,7 +80,11 @@ typedef struct {
     float mag_period_s;         /**< at most one magnetometer observation per this, >= 0 */
     float cog_min_speed_mps;    /**< course alignment at or above this ground speed, >= 0 */
     float cog_sigma0_rad;       /**< base course std, > 0 */
-    mca_robust_config_t robust; /**< robust/adaptive mode of the GNSS update */
+    float gnss_reset_s;         /**< lock-up guard: no GNSS block fused for this long, the next fix is
+                                     fused plain, [0, 600], 0 off */
+    float gnss_block_reset_s;   /**< lock-up guard: one block not fused for this long while the other
+                                     is, that block is fused plain, [0, 600], 0 off */
+    mca_robust_config_t robust; /**< robust/adaptive mode of both GNSS blocks (each its own memory) */
 } mca_ins_config_t;
 
 /** One history entry (56 bytes): the INS solution at the end of a 20 ms interval. */
@@ -103,7 +109,8 @@ typedef struct {
     float bg_rps[3];
     float ba_mps2[3];
     float p[MCA_INS_NX * MCA_INS_NX];
-    mca_robust_state_t rs;        /**< robust memory of the GNSS update */
+    mca_robust_state_t rs;        /**< robust memory of the GNSS position block */
+    mca_robust_state_t rs_v;      /**< robust memory of the GNSS velocity block */
     mca_geo_home_t home;
     mca_ins_hist_t hist[MCA_INS_HIST_LEN];
     float ws[MCA_INS_WS_LEN];
@@ -112,12 +119,15 @@ typedef struct {
     float upd_z[MCA_MEAS_MAX];
     float upd_r[MCA_MEAS_MAX * MCA_MEAS_MAX];
     float dx[MCA_INS_NX];
-    mca_update_report_t rep;      /**< report of the last GNSS update */
+    mca_update_report_t rep;      /**< report of the last GNSS position block */
+    mca_update_report_t rep_v;    /**< report of the last GNSS velocity block */
     /* time */
     uint64_t t_imu_us;
     uint64_t t_first_us;
     uint64_t t_lastfix_us;
     uint64_t t_lastmag_us;
+    uint64_t t_fuse_pos_us;       /**< fix time of the last position block applied (or of the start) */
+    uint64_t t_fuse_vel_us;       /**< the same for the velocity block */
     uint64_t t_hist_newest_us;    /**< full IMU time of the newest history entry */
     /* accumulators */
     float cov_dv_n[3];            /**< sum of dv_f since the last covariance propagation */
@@ -166,11 +176,11 @@ typedef struct {
     float gyro_bias_rps[3];
     float accel_bias_mps2[3];
     float p_diag[MCA_INS_NX];   /**< diagonal of P: dr, dv, phi, b_g, b_a */
-    float gps_t;                /**< last GNSS update T (NaN before the first) */
+    float gps_t;                /**< last GNSS update T, sum over its blocks (NaN before the first) */
     uint32_t gps_m;             /**< its rows */
     uint32_t flags;             /**< MCA_INS_FLAG_* */
-    uint32_t n_gps_upd;         /**< GNSS updates applied */
-    uint32_t n_gps_rej;         /**< rejected by the robust mode or failed numerically */
+    uint32_t n_gps_upd;         /**< fixes whose GNSS update applied a block */
+    uint32_t n_gps_rej;         /**< fixes with a block rejected by the robust mode or failed numerically */
     uint32_t n_gps_skip;        /**< fixes skipped (before alignment, history miss) */
 } mca_ins_output_t;
 
@@ -216,14 +226,16 @@ mca_status_t mca_ins_imu_delta(mca_ins_t *ins, uint64_t t_us, const float dtheta
 
 /**
  * GNSS step (ALGORITHMS.md 10): home, navigation start (with the heading known; course over
- * ground sets it here), or the position/velocity update in the configured robust mode against
- * the INS solution at the fix's validity time. Cost: the history search (<= 51 points), two
- * geodetic conversions, one mca_kf_update (n = 15, m <= 6), the correction of the state and of
- * the 50 history entries: ~33k instructions on the Cortex-M4F (-Os, m = 6; 32k at -O2).
+ * ground sets it here), or the update against the INS solution at the fix's validity time in two
+ * blocks, position rows then velocity rows, each in the configured robust mode with its own
+ * memory and the lock-up guards by time (gnss_reset_s, gnss_block_reset_s). Cost: the history
+ * search (<= 51 points), two geodetic conversions, two mca_kf_update (n = 15, m <= 3 each), the
+ * correction of the state and of the 50 history entries (scripts/fw_report.py section 4b).
  * @return MCA_ERR_NULL; MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE,
- *         MCA_ERR_TIME_BACKWARDS: nothing changed; MCA_ERR_SINGULAR / MCA_ERR_NONFINITE from the
- *         update: not applied, nothing changed but n_gps_rej; else MCA_OK (also for a fix skipped before
- *         alignment, before the heading is known or on a history miss, and a rejected update).
+ *         MCA_ERR_TIME_BACKWARDS: nothing changed; MCA_ERR_SINGULAR / MCA_ERR_NONFINITE from a
+ *         block: that block not applied (a position block applied before a failing velocity
+ *         block stands, and is counted), n_gps_rej counted; else MCA_OK (also for a fix skipped
+ *         before alignment, before the heading is known or on a history miss, and a rejected block).
  */
 mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix);
 

@@ -20,6 +20,7 @@ One block of functions per block of the spec:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass, field, fields, replace
@@ -70,6 +71,7 @@ FIX_VEL_NE, FIX_VEL_D, FIX_ALT = 1, 2, 4  # mca_gps_fix_t flags (ALGORITHMS.md 8
 
 FLAG_ALIGNED, FLAG_HOME_SET, FLAG_NAV, FLAG_YAW_ALIGNED = 1, 2, 4, 8
 FLAG_GPS_LOST, FLAG_HIST_MISS, FLAG_REJECTED, FLAG_SATURATED = 16, 32, 64, 128
+FLAG_DETECTED, FLAG_RESET = 256, 512
 
 _DEG = math.pi / 180.0
 
@@ -116,7 +118,10 @@ class InsConfig:
     mag_period_s: float = 0.1
     cog_min_speed_mps: float = 3.0
     cog_sigma0_rad: float = 0.05
-    robust: RobustConfig = field(default_factory=RobustConfig)
+    gnss_reset_s: float = 30.0  # no GNSS block fused for this long: the next fix plain (0: off)
+    gnss_block_reset_s: float = 120.0  # one block not fused this long while the other is: plain (0: off)
+    # the INS dead-reckons through rejected fixes: its time guards replace the count guard
+    robust: RobustConfig = field(default_factory=lambda: RobustConfig(reject_reset_n=0))
 
     @classmethod
     def preset(cls, name: str = "ground", **overrides: Any) -> InsConfig:
@@ -179,6 +184,9 @@ class InsConfig:
             raise BadConfigError("yaw_source out of range")
         if any(not math.isfinite(x) or abs(x) > 10.0 for x in self.lever_arm_b_m):
             raise BadConfigError("lever_arm_b_m out of range")
+        for name in ("gnss_reset_s", "gnss_block_reset_s"):
+            if not 0.0 <= fin(name) <= 600.0:
+                raise BadConfigError(f"{name} must be in [0, 600]")
         self.robust.validate()
 
 
@@ -200,6 +208,8 @@ def config_from_c(cfg_dict: dict[str, Any]) -> InsConfig:
                 akf_q_max=float(v["akf_q_max"]),
                 igg_k0=float(v["igg_k0"]),
                 igg_k1=float(v["igg_k1"]),
+                reject_reset_n=int(v["reject_reset_n"]),
+                row_reset_n=int(v["row_reset_n"]),
             )
         elif f.name == "lever_arm_b_m":
             kw[f.name] = tuple(float(x) for x in v)
@@ -404,7 +414,9 @@ class Ins:
         self.bg = np.zeros(3)
         self.ba = np.zeros(3)
         self.P = np.zeros((NX, NX))
-        self.rs = RobustState()
+        self.rs = RobustState()  # position block; its AKF factor scales Q
+        self.rs_v = RobustState()  # velocity block
+        self.t_fuse_pos = self.t_fuse_vel = 0
         self.home: tuple[int, int, int] | None = None
         self.hist: deque[_HistEntry] = deque(maxlen=HIST_LEN)
         self.t_imu = self.t_first = self.t_lastfix = self.t_lastmag = 0
@@ -424,7 +436,8 @@ class Ins:
         self.flags = 0
         self.last_gps_t, self.last_gps_m = math.nan, 0
         self.n_upd = self.n_rej = self.n_skip = 0
-        self.last_report: Any = None
+        self.last_report: Any = None  # the position block's
+        self.last_report_v: Any = None
 
     # ---------------------------------------------------------------- position helpers
 
@@ -703,24 +716,68 @@ class Ins:
                         for k, i in rows
                     ]
                 )
-                try:
-                    dx, P, rep = robust_update(np.zeros(NX), self.P, H, nu, R, self.cfg.robust, self.rs)
-                except Exception:
-                    self.n_rej += 1
-                    raise
-                self.last_report = rep
-                self.last_gps_t, self.last_gps_m = rep.T, len(rows)
-                if rep.rejected:
-                    self.flags |= FLAG_REJECTED
-                    self.n_rej += 1
-                else:
-                    self.flags &= ~FLAG_REJECTED
-                    self.P = P
-                    self._correct(dx)
-                    self.n_upd += 1
+                self._gnss_update(t_fix, H, nu, R, sum(k == "p" for k, _ in rows))
         self.have_fix = True
         self.t_lastfix = t_fix
         self.fix_speed = math.hypot(vel[0], vel[1]) if has_vne else -1.0
+
+    def _gnss_update(self, t_fix: int, H: np.ndarray, nu: np.ndarray, R: np.ndarray, mp: int) -> None:
+        """GNSS update step 5 (ALGORITHMS.md 10): the position block, then the velocity block on
+        the correction the first left, each in the robust mode with its own memory; a block is
+        fused plain (memory cleared) when no block was fused for ``gnss_reset_s``, or this one
+        for ``gnss_block_reset_s``; one correction with what both applied."""
+        cfg = self.cfg
+        stale_any = cfg.gnss_reset_s > 0.0 and t_fix - max(self.t_fuse_pos, self.t_fuse_vel) > _us(
+            cfg.gnss_reset_s
+        )
+        plain = RobustConfig()
+        dx, P = np.zeros(NX), self.P
+        applied, t_sum, flags = False, 0.0, 0
+        blocks = (
+            (slice(0, mp), "pos", "rs", "last_report"),
+            (slice(mp, len(nu)), "vel", "rs_v", "last_report_v"),
+        )
+        for sel, name, rs_name, rep_name in blocks:
+            if sel.stop - sel.start == 0:
+                continue
+            t_last = getattr(self, f"t_fuse_{name}")
+            guard = stale_any or (
+                cfg.gnss_block_reset_s > 0.0 and t_fix - t_last > _us(cfg.gnss_block_reset_s)
+            )
+            state = RobustState() if guard else getattr(self, rs_name)
+            try:
+                dx_b, P_b, rep = robust_update(
+                    dx, P, H[sel], nu[sel], R[sel], plain if guard else cfg.robust, state
+                )
+            except Exception:
+                self.n_rej += 1
+                if applied:  # the position block stands
+                    self.P = P
+                    self._correct(dx)
+                    self.n_upd += 1
+                    self._set_gnss_flags(flags)
+                raise
+            if guard:
+                setattr(self, rs_name, RobustState())
+                rep = dataclasses.replace(rep, reset=True)
+            setattr(self, rep_name, rep)
+            t_sum += rep.T
+            flags |= (FLAG_REJECTED if rep.rejected else 0) | (FLAG_DETECTED if rep.detected else 0)
+            flags |= FLAG_RESET if rep.reset else 0
+            if not rep.rejected:
+                dx, P, applied = dx_b, P_b, True
+                setattr(self, f"t_fuse_{name}", t_fix)
+        if applied:
+            self.P = P
+            self._correct(dx)
+            self.n_upd += 1
+        if flags & FLAG_REJECTED:
+            self.n_rej += 1
+        self._set_gnss_flags(flags)
+        self.last_gps_t, self.last_gps_m = t_sum, len(nu)
+
+    def _set_gnss_flags(self, flags: int) -> None:
+        self.flags = (self.flags & ~(FLAG_REJECTED | FLAG_DETECTED | FLAG_RESET)) | flags
 
     def _start_nav(
         self,
@@ -768,6 +825,8 @@ class Ins:
         self.cov_dv, self.cov_acc_us, self.hist_acc_us = np.zeros(3), 0, 0
         self.hist.clear()
         self.nav = True
+        self.rs, self.rs_v = RobustState(), RobustState()
+        self.t_fuse_pos = self.t_fuse_vel = t_fix
 
     def _cog_align(self, vel: np.ndarray, has_vne: bool, s_acc: float, rot_fix: Rotation) -> Rotation:
         """Course-over-ground yaw alignment when due; returns rot_fix turned likewise."""
