@@ -1,6 +1,6 @@
 """The loosely-coupled INS (DESIGN.md 6, docs/ALGORITHMS.md 10) against the CS + gravity filter.
 
-Run: PYTHONPATH=python python benchmarks/bench_ins.py [--seeds 1 2] [--no-outliers] [--no-real]
+Run: PYTHONPATH=python python benchmarks/bench_ins.py [--seeds 1 2] [--no-real]
 
 Prints, never asserts:
 
@@ -9,8 +9,8 @@ Prints, never asserts:
    host time per IMU sample of both;
 2. GPS outages of 10, 30 and 60 s (``gps_outage`` scenario, fixed-wing, car, multirotor): INS
    position drift at the end of the outage, roll/pitch of both filters during and after it;
-3. the GNSS outlier set of benchmarks/bench_outliers.py applied to the INS, per robust mode
-   (position / velocity / roll-pitch RMS, outlier-free run / run with outliers);
+3. GNSS outliers: measured by benchmarks/bench_outliers.py, which runs its fault set through the
+   INS too (``--ins-only``), per robust mode, with detections and false alarms;
 4. real recordings from ../shared/data when present (loaders of mcahrs.io.loaders): the car
    (RTK fixes, no attitude reference: INS drift against the withheld RTK fixes in outages, the
    two filters' roll/pitch against each other and against the levelled static start),
@@ -42,7 +42,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 SIM = {"car_accel_brake": "ground", "fixedwing_turns": "fixedwing", "multirotor_aggressive": "multirotor"}
 OUTAGE_VEHICLES = {"fixedwing": "fixedwing", "car": "ground", "multirotor": "multirotor"}
-ROBUST_MODES = ("plain", "fta", "akf", "fuzzy", "igg3")
 
 
 def rms(x: np.ndarray) -> float:
@@ -194,43 +193,6 @@ def bench_outages(seeds: list[int]) -> None:
                 f"{r[4]:14.2f}d {r[5]:9.2f}d"
             )
     print("(roll/pitch 'max in' = largest |error| during the outage; '10 s after' = RMS over 10 s after)")
-
-
-# ------------------------------------------------------------------------------ 3. outliers
-
-
-def bench_outliers(seed: int, duration_s: float) -> None:
-    import bench_outliers as bo
-
-    print(
-        f"\n3. GNSS outliers of benchmarks/bench_outliers.py on the INS (seed {seed}, {duration_s:.0f} s; "
-        f"errors from {bo.SETTLE_S:.0f} s after the first fix; outlier-free / with outliers)"
-    )
-    print(
-        f"{'scenario':22s} {'mode':6s} {'pos RMS (m)':>15s} {'vel RMS (m/s)':>15s} {'roll/pitch RMS':>17s} "
-        f"{'rejected':>8s}"
-    )
-    for name, preset in SIM.items():
-        res = scenario(name, seed=seed, duration_s=duration_s, earth_rate=True)
-        rec, tr = res.recording, res.truth
-        faults = bo.plan_faults(rec.gnss["t_us"] * 1e-6, duration_s, np.random.default_rng(seed + 1000))
-        bad = bo.inject(rec, faults)
-        off = home_offset(rec, sim_home(res))
-        t = rec.imu["t_us"] * 1e-6
-        for mode in ROBUST_MODES:
-            cells = []
-            for r in (rec, bad):
-                out = core.ins_replay(r, core.ins_config(preset, robust=mode))
-                w = ins_valid(out) & (t >= rec.gnss["t_us"][0] * 1e-6 + bo.SETTLE_S)
-                pe = np.linalg.norm(out["pos_ned_m"] + off - tr.pos_ned_m, axis=1)[w]
-                ve = np.linalg.norm(out["vel_ned_mps"] - tr.vel_ned_mps, axis=1)[w]
-                e = euler_err_deg(out["euler_rad"], tr.euler_rad)[w, :2]
-                cells.append((rms(pe), rms(ve), rms(e), int(out["n_gps_rej"][-1])))
-            (p0, v0, a0, _), (p1, v1, a1, rej) = cells
-            print(
-                f"{name:22s} {mode:6s} {p0:6.2f} / {p1:6.2f} {v0:6.3f} / {v1:6.3f} {a0:7.3f} / {a1:7.3f}d "
-                f"{rej:8d}"
-            )
 
 
 # ------------------------------------------------------------------------------ 4. real data
@@ -385,8 +347,6 @@ def bench_real() -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--outlier-duration", type=float, default=900.0)
-    ap.add_argument("--no-outliers", action="store_true")
     ap.add_argument("--no-real", action="store_true")
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -396,8 +356,8 @@ def main() -> None:
     )
     bench_sim(args.seeds)
     bench_outages(args.seeds)
-    if not args.no_outliers:
-        bench_outliers(args.seeds[0], args.outlier_duration)
+    print("\n3. GNSS outliers on the INS, per robust mode, with detections and false alarms:")
+    print("   python benchmarks/bench_outliers.py --ins-only (the faults the CS + gravity filter gets)")
     if not args.no_real:
         bench_real()
     print("\n5. Cortex-M4F instruction counts of the INS and of the CS + gravity filter, side by side:")

@@ -1,7 +1,7 @@
 """GNSS outlier benchmark of the C navigation filter, once per robust update mode (DESIGN.md 5).
 
 Run: PYTHONPATH=python python benchmarks/bench_outliers.py [--seed N] [--duration S]
-     [--scenario NAME ...] [--cs-only] [--own-test]
+     [--scenario NAME ...] [--cs-only] [--own-test] [--no-ins | --ins-only]
 
 Prints, never asserts. For each simulator scenario it injects GNSS faults the way the detection
 paper (001, section 3.2) tests them, and replays the clean and the faulty recording through the C
@@ -33,6 +33,12 @@ with each mode's own rule, per axis, and a fix counts as flagged when any axis i
   golden model (``mcahrs.golden.robust.fuzzy_detector_step``: exact, it only needs T and m);
 * IGG-III: T > k1^2 (per-row weights are not in the output; a row can only be removed when its
   standardised residual exceeds k1, which needs T > k1^2).
+
+The same faults then go through the loosely-coupled INS (``core.ins_replay``, ALGORITHMS.md 10;
+the simulator with earth rate, which the INS removes), the kind of filter paper 001 tests, once per
+robust mode on its GNSS update (position and velocity blocks, each with its own memory). Its output
+carries per-fix flags, so there detection is the mode's own ``detected`` flag (fuzzy: its alarm;
+plain: T > chi2_m(0.005) on the update's T, the sum over its blocks); the same scores and goals.
 
 Baseline for false alarms: the 4-epoch sliding-window chi-square detector on the same T (sum of the
 last 4 epochs' T of an axis > chi2 with the summed m, at 0.005), as in paper 001.
@@ -219,18 +225,36 @@ def measurement_rows(gnss: np.ndarray) -> np.ndarray:
     return np.stack([m_h, m_h, alt.astype(int) + vel_d.astype(int)], axis=1)
 
 
+def fix_rows(out: dict[str, np.ndarray], rec: Recording) -> np.ndarray:
+    """Output row of each fix. Replay order (ALGORITHMS.md 9): at equal times IMU first, then GPS;
+    a row is recorded after each IMU sample, so a fix shows in the first row after its arrival."""
+    t_imu = out["t_us"].astype(np.int64)
+    return np.minimum(np.searchsorted(t_imu, rec.gnss["t_rx_us"], side="right"), t_imu.size - 1)
+
+
 def replay(rec: Recording, res: object, cfg: object) -> Run:
     out = core.replay(rec, cfg)
-    t_imu = out["t_us"].astype(np.int64)
-    gnss = rec.gnss
-    # Replay order (ALGORITHMS.md 9): at equal times IMU first, then GPS; a row is recorded after
-    # each IMU sample, so a fix's T shows in the first row after its arrival.
-    rows = np.minimum(np.searchsorted(t_imu, gnss["t_rx_us"], side="right"), t_imu.size - 1)
+    rows = fix_rows(out, rec)
     ok = out["gps_status"] == 0
     valid = ok.copy()
     home = int(np.flatnonzero(ok)[0])
     valid[home] = False
     T = out["gps_t"][rows].astype(np.float64)
+    return _run(out, rec, res, rows, valid, home, T, measurement_rows(rec.gnss))
+
+
+def _run(
+    out: dict[str, np.ndarray],
+    rec: Recording,
+    res: object,
+    rows: np.ndarray,
+    valid: np.ndarray,
+    home: int,
+    T: np.ndarray,
+    m: np.ndarray,
+) -> Run:
+    t_imu = out["t_us"].astype(np.int64)
+    gnss = rec.gnss
 
     truth = res.truth
     rp_err = _wrap(out["euler_rad"][:, :2].astype(np.float64) - truth.euler_rad[:, :2])
@@ -243,7 +267,7 @@ def replay(rec: Recording, res: object, cfg: object) -> Run:
     pos_err = np.stack([n, e, d], axis=1) - truth.pos_ned_m
     vel_err = out["vel_ned_mps"].astype(np.float64) - truth.vel_ned_mps
     window = t_imu >= gnss["t_us"][home] + round(SETTLE_S * 1e6)
-    return Run(out, rows, valid, T, measurement_rows(gnss), rp_err, pos_err, vel_err, window)
+    return Run(out, rows, valid, T, m, rp_err, pos_err, vel_err, window)
 
 
 def rms(a: np.ndarray) -> float:
@@ -291,7 +315,7 @@ def sliding_window_flags(run: Run) -> np.ndarray:
     """Sum of the last SW_LEN epochs' T per axis against chi2(sum of m) at SW_ALPHA."""
     flags = np.zeros(run.T.shape, dtype=bool)
     idx = np.flatnonzero(run.valid)
-    for axis in range(3):
+    for axis in range(run.T.shape[1]):
         for j, i in enumerate(idx):
             last = idx[max(0, j - SW_LEN + 1) : j + 1]
             dof = int(run.m[last, axis].sum())
@@ -604,6 +628,149 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
     return rows
 
 
+# --------------------------------------------------------------------------------------
+# The same faults on the loosely-coupled INS (ALGORITHMS.md 10), the filter paper 001 tests
+# --------------------------------------------------------------------------------------
+
+# (label, robust mode name, other mca_ins_config_t fields)
+INS_MODES = (
+    ("plain", "plain", {}),
+    ("FTA", "fta", {}),
+    ("AKF", "akf", {}),
+    ("fuzzy", "fuzzy", {}),
+    ("fuzzy-infl", "fuzzy", {"robust.fuzzy_reject": 0}),
+    ("IGG-III", "igg3", {}),
+)
+INS_PRESETS = {
+    "fixedwing_turns": "fixedwing",
+    "multirotor_aggressive": "multirotor",
+    "car_accel_brake": "ground",
+}
+
+
+def ins_replay(rec: Recording, res: object, preset: str, mode: str, extra: dict) -> Run:
+    """The INS on a recording, as a Run: T and m are the GNSS update's (the sum over its position
+    and velocity blocks, m all rows); a fix counts when it made an update (applied or rejected)."""
+    out = core.ins_replay(rec, core.ins_config(preset, robust=mode, **extra))
+    rows = fix_rows(out, rec)
+    made = np.diff(out["n_gps_upd"][rows] + out["n_gps_rej"][rows], prepend=0) > 0
+    valid = (out["gps_status"] == 0) & made
+    home = int(np.flatnonzero(out["gps_status"] == 0)[0])
+    T = out["gps_t"][rows].astype(np.float64)[:, None]
+    run = _run(out, rec, res, rows, valid, home, T, out["gps_m"][rows].astype(int)[:, None])
+    run.window &= (out["flags"] & core.INS_FLAG_BITS["nav"]) != 0
+    return run
+
+
+def ins_flags(run: Run, mode: str) -> np.ndarray:
+    """Per-fix detection: the robust mode's own (output flag ``detected``: a block's test flagged
+    it; fuzzy: its alarm); plain detects nothing, so the single threshold T > chi2_m(0.005)."""
+    if mode == "plain":
+        t, m = run.T[:, 0], run.m[:, 0]
+        q = np.array([chi2_quantile(0.005, int(k)) if k > 0 else np.inf for k in m])
+        return run.valid & (t > q)
+    return run.valid & ((run.out["flags"][run.rows] & core.INS_FLAG_BITS["detected"]) != 0)
+
+
+def bench_ins_scenario(name: str, seed: int, duration_s: float) -> list[dict]:
+    preset = INS_PRESETS[name]
+    res = scenario(name, seed=seed, duration_s=duration_s, earth_rate=True)  # the INS removes it
+    rec = res.recording
+    t_fix_s = rec.gnss["t_us"] * 1e-6
+    faults = plan_faults(t_fix_s, duration_s, np.random.default_rng(seed + 1000))
+    bad = inject(rec, faults)
+    print(f"\n=== INS, {name} (preset {preset}, seed {seed}, the same faults) ===")
+    rows = []
+    for label, mode, extra in INS_MODES:
+        clean, run = ins_replay(rec, res, preset, mode, extra), ins_replay(bad, res, preset, mode, extra)
+        flags = ins_flags(run, mode)
+        rows.append(
+            dict(
+                label=label,
+                mode=mode,
+                clean=clean,
+                run=run,
+                rp_clean=rms(clean.rp_err[clean.window]),
+                rp_bad=rms(run.rp_err[run.window]),
+                pos=(rms3(clean.pos_err[clean.window]), rms3(run.pos_err[run.window])),
+                vel=(rms3(clean.vel_err[clean.window]), rms3(run.vel_err[run.window])),
+                det=score(flags, faults, run.valid),
+                sw=score(sliding_window_flags(run), faults, run.valid),
+                clean_fa=score(ins_flags(clean, mode), faults, clean.valid).false_alarms,
+                sw_clean_fa=score(sliding_window_flags(clean), faults, clean.valid).false_alarms,
+                events=event_detection(flags, faults, run.valid),
+            )
+        )
+    e_plain = rows[0]["clean"].pos_err[rows[0]["clean"].window]
+    bound_m = float(np.percentile(np.hypot(e_plain[:, 0], e_plain[:, 1]), 99)) + 1.0
+    for r in rows:
+        r["long"] = long_fault(r["run"], bound_m, faults, ins_flags(r["run"], r["mode"]), t_fix_s)
+    deg = 180.0 / math.pi
+    print(
+        f"{'mode':10s} {'roll/pitch RMS (deg)':>21s} {'ratio':>6s}  {'pos RMS (m)':>19s}  "
+        f"{'vel RMS (m/s)':>17s}  {DETECTION_HEADER}  {'SW4 FA':>6s} {'clean FA':>8s} {'SW4':>4s}  "
+        f"{'100 s: max herr':>15s} {'recovery':>9s}"
+    )
+    for r in rows:
+        lf = r["long"]
+        rec_txt = f"{lf.recovery_fixes:d}" if lf.recovery_fixes is not None else "never"
+        print(
+            f"{r['label']:10s} {r['rp_clean'] * deg:8.3f} / {r['rp_bad'] * deg:8.3f} "
+            f"{r['rp_bad'] / r['rp_clean']:6.2f}  {_num(r['pos'][0])} / {_num(r['pos'][1])}  "
+            f"{_num(r['vel'][0])} / {_num(r['vel'][1])}  {r['det'].row()}  "
+            f"{r['sw'].false_alarms:6d} {r['clean_fa']:8d} {r['sw_clean_fa']:4d}  "
+            f"{_num(max(lf.max_err_during_m, lf.max_err_after_m))} m {rec_txt:>9s}"
+        )
+    print(
+        "(recovery: fixes after the 100 s fault until 10 in a row are within "
+        f"{bound_m:.1f} m, plain clean p99 + 1 m)"
+    )
+    print(f"{'mode':10s} faults flagged at least once: {EVENT_HEADER}")
+    for r in rows:
+        print(f"{r['label']:10s} {'':30s}{r['events']}")
+    return rows
+
+
+def ins_summary(results: dict[str, list[dict]]) -> None:
+    names = list(results)
+    print("\n=== INS, all scenarios (goals as for the CS + gravity filter) ===")
+    print(
+        f"{'mode':10s} {'roll/pitch ratio (' + ', '.join(n.split('_')[0] for n in names) + ')':>34s} "
+        f"{'detection':>10s} {'FA':>6s} {'SW4 FA':>7s} {'FA/SW4, clean':>14s} {'100 s: recovery':>16s}   goal"
+    )
+    for k, (label, mode, _) in enumerate(INS_MODES):
+        rs = [results[n][k] for n in names]
+        ratios = [r["rp_bad"] / r["rp_clean"] for r in rs]
+        det = sum(r["det"].detected for r in rs)
+        miss = sum(r["det"].missed for r in rs)
+        fa = sum(r["det"].false_alarms for r in rs)
+        swfa = sum(r["sw"].false_alarms for r in rs)
+        fa0, swfa0 = sum(r["clean_fa"] for r in rs), sum(r["sw_clean_fa"] for r in rs)
+        recs = [r["long"].recovery_fixes for r in rs]
+        diverged = any(r["long"].diverged for r in rs)
+        rec_ok = not diverged and all(x is not None and x <= GOAL_RECOVERY_FIXES for x in recs)
+        if mode == "plain":
+            goal = f"ratio >= {GOAL_PLAIN_RP_RATIO:.1f}x: {_goal(min(ratios) >= GOAL_PLAIN_RP_RATIO)}"
+        else:
+            goal = f"ratio <= {GOAL_ROBUST_RP_RATIO:.2f}x: {_goal(max(ratios) <= GOAL_ROBUST_RP_RATIO)}"
+        if label == "fuzzy":
+            rate = det / max(det + miss, 1)
+            cut = 1.0 - fa / swfa if swfa else float("nan")
+            goal += (
+                f"; detection {100.0 * rate:.1f}% (>= {100.0 * GOAL_FUZZY_DETECTION:.0f}%: "
+                f"{_goal(rate >= GOAL_FUZZY_DETECTION)}), FA {100.0 * cut:.0f}% fewer than SW4 "
+                f"(>= {100.0 * GOAL_FUZZY_FA_CUT:.0f}%: {_goal(cut >= GOAL_FUZZY_FA_CUT)})"
+            )
+        if mode != "plain":
+            goal += f"; no divergence, recovery <= {GOAL_RECOVERY_FIXES} fixes: {_goal(rec_ok)}"
+        rec_txt = " ".join("-" if x is None else str(x) for x in recs)
+        print(
+            f"{label:10s} {' '.join(f'{x:6.2f}' for x in ratios):>34s} "
+            f"{100.0 * det / max(det + miss, 1):9.1f}% "
+            f"{fa:6d} {swfa:7d} {f'{fa0} / {swfa0}':>14s} {rec_txt:>16s}   {goal}"
+        )
+
+
 def _between(run: Run, a: float, b: float) -> np.ndarray:
     t = run.out["t_us"] * 1e-6
     return (t >= a) & (t < b)
@@ -621,6 +788,8 @@ def main() -> None:
     ap.add_argument("--scenario", action="append", choices=sorted(SCENARIOS), help="repeatable; default all")
     ap.add_argument("--cs-only", action="store_true", help="robust mode on the CS filters only")
     ap.add_argument("--own-test", action="store_true", help="test the CS prediction, not the IMU-aided one")
+    ap.add_argument("--no-ins", action="store_true", help="leave out the INS runs")
+    ap.add_argument("--ins-only", action="store_true", help="only the INS runs")
     args = ap.parse_args()
     global OWN_TEST
     OWN_TEST = args.own_test
@@ -636,6 +805,12 @@ def main() -> None:
         "SW4: 4-epoch sliding-window chi-square at 0.005.\n"
         f"Errors from the first fix + {SETTLE_S:.0f} s; roll/pitch RMS over both angles; pos/vel RMS 3-D."
     )
+    if not args.no_ins:
+        ins = {n: bench_ins_scenario(n, args.seed, args.duration) for n in names}
+        ins_summary(ins)
+    if args.ins_only:
+        print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
+        return
     results = {n: bench_scenario(n, SCENARIOS[n], args.seed, args.duration, args.cs_only) for n in names}
 
     print("\n=== all scenarios ===")
