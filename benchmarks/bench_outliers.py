@@ -496,6 +496,22 @@ def segments(faults: Faults, t_fix_s: np.ndarray, duration_s: float) -> list[tup
     ]
 
 
+def scores(clean: Run, run: Run, flags: np.ndarray, clean_flags: np.ndarray, faults: Faults) -> dict:
+    """Errors of the outlier-free and the faulty run, and the detection scores of a mode's flags
+    on the faulty run (``flags``) and on the outlier-free one (``clean_flags``), with SW4 beside."""
+    return dict(
+        rp_clean=rms(clean.rp_err[clean.window]),
+        rp_bad=rms(run.rp_err[run.window]),
+        pos=(rms3(clean.pos_err[clean.window]), rms3(run.pos_err[run.window])),
+        vel=(rms3(clean.vel_err[clean.window]), rms3(run.vel_err[run.window])),
+        det=score(flags, faults, run.valid),
+        sw=score(sliding_window_flags(run), faults, run.valid),
+        clean_fa=score(clean_flags, faults, clean.valid).false_alarms,
+        sw_clean_fa=score(sliding_window_flags(clean), faults, clean.valid).false_alarms,
+        events=event_detection(flags, faults, run.valid),
+    )
+
+
 def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only: bool) -> list[dict]:
     res = scenario(name, seed=seed, duration_s=duration_s)
     rec = res.recording
@@ -523,15 +539,7 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
         clean, run = r["clean"], r["run"]
         flags = rule_flags(MODE_RULE[r["mode"]], run)
         r.update(
-            rp_clean=rms(clean.rp_err[clean.window]),
-            rp_bad=rms(run.rp_err[run.window]),
-            pos=(rms3(clean.pos_err[clean.window]), rms3(run.pos_err[run.window])),
-            vel=(rms3(clean.vel_err[clean.window]), rms3(run.vel_err[run.window])),
-            det=score(flags, faults, run.valid),
-            sw=score(sliding_window_flags(run), faults, run.valid),
-            clean_fa=score(rule_flags(MODE_RULE[r["mode"]], clean), faults, clean.valid).false_alarms,
-            sw_clean_fa=score(sliding_window_flags(clean), faults, clean.valid).false_alarms,
-            events=event_detection(flags, faults, run.valid),
+            **scores(clean, run, flags, rule_flags(MODE_RULE[r["mode"]], clean), faults),
             fa_flags=flags & ~faults.faulty & run.valid,
             long=long_fault(run, bound_m, faults, flags, t_fix_s),
             refused=int(np.sum(run.out["gps_status"] != 0)),
@@ -685,21 +693,8 @@ def bench_ins_scenario(name: str, seed: int, duration_s: float) -> list[dict]:
         clean, run = ins_replay(rec, res, preset, mode, extra), ins_replay(bad, res, preset, mode, extra)
         flags = ins_flags(run, mode)
         rows.append(
-            dict(
-                label=label,
-                mode=mode,
-                clean=clean,
-                run=run,
-                rp_clean=rms(clean.rp_err[clean.window]),
-                rp_bad=rms(run.rp_err[run.window]),
-                pos=(rms3(clean.pos_err[clean.window]), rms3(run.pos_err[run.window])),
-                vel=(rms3(clean.vel_err[clean.window]), rms3(run.vel_err[run.window])),
-                det=score(flags, faults, run.valid),
-                sw=score(sliding_window_flags(run), faults, run.valid),
-                clean_fa=score(ins_flags(clean, mode), faults, clean.valid).false_alarms,
-                sw_clean_fa=score(sliding_window_flags(clean), faults, clean.valid).false_alarms,
-                events=event_detection(flags, faults, run.valid),
-            )
+            dict(label=label, mode=mode, clean=clean, run=run)
+            | scores(clean, run, flags, ins_flags(clean, mode), faults)
         )
     e_plain = rows[0]["clean"].pos_err[rows[0]["clean"].window]
     bound_m = float(np.percentile(np.hypot(e_plain[:, 0], e_plain[:, 1]), 99)) + 1.0

@@ -171,28 +171,31 @@ def test_c_matches_golden_step_by_step(case: str) -> None:
     assert p_rel.max() < 1e-2  # float32 P against float64: 1.3e-3 measured
 
 
+def _move_fixes(gnss: np.ndarray, params, idx: np.ndarray, dn_m: float, de_m: float) -> None:
+    """Move the fixes ``idx`` of ``gnss`` (in place) by dn_m north and de_m east."""
+    p = params
+    n, e, d = pymap3d.geodetic2ned(
+        gnss["lat_e7"][idx] * 1e-7,
+        gnss["lon_e7"][idx] * 1e-7,
+        gnss["alt_mm"][idx] * 1e-3,
+        p.home_lat_deg,
+        p.home_lon_deg,
+        p.home_alt_m,
+    )
+    lat, lon, _ = pymap3d.ned2geodetic(n + dn_m, e + de_m, d, p.home_lat_deg, p.home_lon_deg, p.home_alt_m)
+    gnss["lat_e7"][idx] = np.round(lat * 1e7).astype(np.int32)
+    gnss["lon_e7"][idx] = np.round(lon * 1e7).astype(np.int32)
+
+
 def _with_faults(res, faults: list[tuple[float, float, tuple[float, float], tuple[float, float]]]):
     """A copy of the recording with GNSS faults: (t0 s, t1 s, position offset NE m, velocity
     offset NE m/s) added to the fixes whose time is in [t0, t1)."""
     rec = res.recording
     gnss = rec.gnss.copy()
-    p = res.params
     t = gnss["t_us"] * 1e-6
     for t0, t1, dp, dv in faults:
         idx = np.flatnonzero((t >= t0) & (t < t1))
-        n, e, d = pymap3d.geodetic2ned(
-            gnss["lat_e7"][idx] * 1e-7,
-            gnss["lon_e7"][idx] * 1e-7,
-            gnss["alt_mm"][idx] * 1e-3,
-            p.home_lat_deg,
-            p.home_lon_deg,
-            p.home_alt_m,
-        )
-        lat, lon, _ = pymap3d.ned2geodetic(
-            n + dp[0], e + dp[1], d, p.home_lat_deg, p.home_lon_deg, p.home_alt_m
-        )
-        gnss["lat_e7"][idx] = np.round(lat * 1e7).astype(np.int32)
-        gnss["lon_e7"][idx] = np.round(lon * 1e7).astype(np.int32)
+        _move_fixes(gnss, res.params, idx, dp[0], dp[1])
         gnss["vel_ned_mps"][idx, 0] += dv[0]
         gnss["vel_ned_mps"][idx, 1] += dv[1]
     return type(rec)(rec.name + "+faults", rec.imu, gnss, rec.mag, rec.ref, rec.meta)
@@ -372,21 +375,8 @@ def _with_position_outliers(res, every: int = 25, jump_m: float = 40.0):
     """A copy of the recording with every ``every``-th fix moved ``jump_m`` north-east."""
     rec = res.recording
     gnss = rec.gnss.copy()
-    p = res.params
     idx = np.arange(10, len(gnss), every)
-    n, e, d = pymap3d.geodetic2ned(
-        gnss["lat_e7"][idx] * 1e-7,
-        gnss["lon_e7"][idx] * 1e-7,
-        gnss["alt_mm"][idx] * 1e-3,
-        p.home_lat_deg,
-        p.home_lon_deg,
-        p.home_alt_m,
-    )
-    lat, lon, _ = pymap3d.ned2geodetic(
-        n + jump_m / math.sqrt(2), e + jump_m / math.sqrt(2), d, p.home_lat_deg, p.home_lon_deg, p.home_alt_m
-    )
-    gnss["lat_e7"][idx] = np.round(lat * 1e7).astype(np.int32)
-    gnss["lon_e7"][idx] = np.round(lon * 1e7).astype(np.int32)
+    _move_fixes(gnss, res.params, idx, jump_m / math.sqrt(2), jump_m / math.sqrt(2))
     return type(rec)(rec.name + "+outliers", rec.imu, gnss, rec.mag, rec.ref, rec.meta), gnss["t_rx_us"][idx]
 
 
