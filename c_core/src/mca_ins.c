@@ -1017,7 +1017,7 @@ static void cog_align(mca_ins_t *ins, const float vel[3], int has_vne, float s_a
  * update scratch of the state: position rows first (*m_pos of them), then velocity rows; R as
  * two diagonal blocks one after the other (m_pos x m_pos at upd_r, then the velocity block).
  * Returns the number of rows. */
-static size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s, const float vel[3],
+static MCA_NOINLINE size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s, const float vel[3],
                         uint8_t vmask, float h_acc, float v_acc, float s_acc, size_t *m_pos)
 {
     const int has_alt = (fix->flags & MCA_FIX_ALT) != 0u;
@@ -1048,6 +1048,7 @@ static size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_
         }
         float *row = &h[m * NX];
         row[MCA_INS_DR + i] = 1.0f;
+        ins->upd_idx[m] = (uint8_t)(MCA_INS_DR + i);
         for (size_t j = 0; j < 3u; ++j) {
             row[MCA_INS_PHI + j] = -skew_cl[i * 3u + j];
         }
@@ -1062,6 +1063,7 @@ static size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_
         }
         float *row = &h[m * NX];
         row[MCA_INS_DV + i] = 1.0f;
+        ins->upd_idx[m] = (uint8_t)(MCA_INS_DV + i);
         for (size_t j = 0; j < 3u; ++j) {
             row[MCA_INS_PHI + j] = -skew_cwl[i * 3u + j];
             row[MCA_INS_BG + j] = clx[i * 3u + j];
@@ -1084,18 +1086,62 @@ static size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_
 /* One block of GNSS rows (ALGORITHMS.md 10, GNSS update step 5): rows [r0, r0 + mb) of the
  * scratch with R at rb, applied to the accumulated correction ins->dx in the configured robust
  * mode with the block's own memory; plain, and the memory cleared, when a lock-up guard fires. */
+/* Lock-up guard reset of rows [r0, r0 + mb) (ALGORITHMS.md 10, GNSS update step 5): their states
+ * take the fix (dx = the innovation, replacing what the other block put there), their covariance
+ * R, uncorrelated with the rest. Not inlined: the guard is rare, the GNSS step's stack is not.
+ * Row and column are written in one pass, the diagonal inside it: written as zeroing loops and
+ * then the diagonal store, GCC 12.2 at -O3 dropped the call altogether (not at -O0, -O2, -Os;
+ * tests/python/test_ins.py against the golden model and tests/c/test_ins.c at Release catch it). */
+static MCA_NOINLINE void gnss_reset_block(mca_ins_t *ins, size_t r0, size_t mb, const float *rb)
+{
+    for (size_t i = 0; i < mb; ++i) {
+        const size_t k = ins->upd_idx[r0 + i];
+        const float r_kk = rb[i * mb + i];
+        ins->dx[k] = ins->upd_z[r0 + i];
+        for (size_t j = 0; j < NX; ++j) {
+            ins->p[k * NX + j] = j == k ? r_kk : 0.0f;
+            ins->p[j * NX + k] = j == k ? r_kk : 0.0f;
+        }
+    }
+}
+
 static mca_status_t gnss_block(mca_ins_t *ins, size_t r0, size_t mb, const float *rb, mca_robust_state_t *rs,
                                mca_update_report_t *rep, int guard)
 {
-    static const mca_robust_config_t plain = {0}; /* mode 0, plain: reads no other field */
-    const mca_robust_config_t *rc = guard ? &plain : &ins->cfg.robust;
     const mca_status_t st = mca_kf_update_tested(ins->dx, ins->p, NX, &ins->upd_h[r0 * NX], &ins->upd_z[r0], rb, mb,
-                                                 rc, rs, NULL, NULL, ins->ws, MCA_INS_WS_LEN, rep);
-    if (st == MCA_OK && guard) {
+                                                 &ins->cfg.robust, rs, NULL, NULL, ins->ws, MCA_INS_WS_LEN, rep);
+    if (st == MCA_OK && guard && rep->rejected) {
+        gnss_reset_block(ins, r0, mb, rb);
         mca_robust_state_init(rs);
         rep->reset = 1u;
+        rep->rejected = 0u;
     }
     return st;
+}
+
+/* T of the rows [r0, r0 + mb) alone against the prior (x = 0, P as propagated), R at rb:
+ * nu^T (H P H^T + R)^-1 nu, the statistic mca_kf_update takes; +inf when it cannot be formed. */
+static float gnss_block_t(mca_ins_t *ins, size_t r0, size_t mb, const float *rb)
+{
+    /* in the update scratch, free between the two block updates: C, P h^T, the test's scratch */
+    float *c = ins->ws, *u = &ins->ws[9], *ws = &ins->ws[9u + NX];
+    const float *h = &ins->upd_h[r0 * NX];
+    for (size_t j = 0; j < mb; ++j) {
+        mca_mat_mul(u, ins->p, &h[j * NX], NX, NX, 1u); /* P h_j^T */
+        for (size_t i = 0; i <= j; ++i) {
+            float a = rb[i * mb + j];
+            for (size_t k = 0; k < NX; ++k) {
+                a += h[i * NX + k] * u[k];
+            }
+            c[i * mb + j] = a;
+            c[j * mb + i] = a;
+        }
+    }
+    float t_stat = INFINITY;
+    if (mca_kf_test_stat(&ins->upd_z[r0], c, mb, ws, &t_stat) != MCA_OK || !isfinite(t_stat)) {
+        t_stat = INFINITY;
+    }
+    return t_stat;
 }
 
 /* Output flags of one block's report. */
@@ -1123,9 +1169,33 @@ static mca_status_t gnss_update(mca_ins_t *ins, const mca_gps_fix_t *fix, const 
     float t_sum = 0.0f;
     uint32_t fl = 0u;
     mca_status_t st = MCA_OK;
-    if (mp > 0u) {
+    int vel_rejected = 0;
+    if (mv > 0u) {
+        const int guard = stale_any || (lim_blk > 0u && t - ins->t_fuse_vel_us > lim_blk);
+        st = gnss_block(ins, mp, mv, &ins->upd_r[mp * mp], &ins->rs_v, &ins->rep_v, guard);
+        if (st == MCA_OK) {
+            t_sum += ins->rep_v.t_stat;
+            fl |= gnss_block_flags(&ins->rep_v);
+            vel_rejected = ins->rep_v.rejected != 0u;
+            if (!ins->rep_v.rejected) {
+                applied = 1;
+                ins->t_fuse_vel_us = t;
+            }
+        }
+    }
+    if (st == MCA_OK && mp > 0u) {
         const int guard = stale_any || (lim_blk > 0u && t - ins->t_fuse_pos_us > lim_blk);
-        st = gnss_block(ins, 0u, mp, ins->upd_r, &ins->rs, &ins->rep, guard);
+        const float t_p = vel_rejected && !guard ? gnss_block_t(ins, 0u, mp, ins->upd_r) : 0.0f;
+        if (vel_rejected && !guard && !(t_p < mca_chi2_quantile(mp, MCA_CHI2_2P5E2))) {
+            /* held out with the velocity: not offered to its detector, whose memory stays */
+            memset(&ins->rep, 0, sizeof(ins->rep));
+            ins->rep.m = (uint8_t)mp;
+            ins->rep.mode = ins->cfg.robust.mode;
+            ins->rep.t_stat = t_p;
+            ins->rep.rejected = 1u;
+        } else {
+            st = gnss_block(ins, 0u, mp, ins->upd_r, &ins->rs, &ins->rep, guard);
+        }
         if (st == MCA_OK) {
             t_sum += ins->rep.t_stat;
             fl |= gnss_block_flags(&ins->rep);
@@ -1135,20 +1205,8 @@ static mca_status_t gnss_update(mca_ins_t *ins, const mca_gps_fix_t *fix, const 
             }
         }
     }
-    if (st == MCA_OK && mv > 0u) {
-        const int guard = stale_any || (lim_blk > 0u && t - ins->t_fuse_vel_us > lim_blk);
-        st = gnss_block(ins, mp, mv, &ins->upd_r[mp * mp], &ins->rs_v, &ins->rep_v, guard);
-        if (st == MCA_OK) {
-            t_sum += ins->rep_v.t_stat;
-            fl |= gnss_block_flags(&ins->rep_v);
-            if (!ins->rep_v.rejected) {
-                applied = 1;
-                ins->t_fuse_vel_us = t;
-            }
-        }
-    }
     if (applied) {
-        /* a velocity block that failed leaves the position block's P and dx, which stand */
+        /* a position block that failed leaves the velocity block's P and dx, which stand */
         correct(ins, ins->dx);
         ins->n_gps_upd++;
     }

@@ -405,6 +405,70 @@ static void test_bad_input_leaves_state_unchanged(void)
     CHECK_EQ_INT(mca_ins_replay(NULL, NULL, 0u, NULL, 0u, NULL, 0u, NULL, NULL, NULL, NULL), MCA_ERR_NULL);
 }
 
+/* Lock-up guards (ALGORITHMS.md 10, GNSS update step 5), fuzzy mode, straight and level north at
+ * 10 m/s: a position-only fault longer than gnss_block_reset_s (velocity fused) resets the
+ * position to the fix; a position and velocity fault longer than gnss_reset_s (nothing fused)
+ * resets both; a reset leaves the state's covariance rows R on the diagonal, zero elsewhere. */
+static void test_lockup_guards_reset_to_the_fix(void)
+{
+    mca_ins_config_t c;
+    flat_config(&c);
+    c.init_timeout_s = 0.5f;
+    c.robust.mode = MCA_ROBUST_FUZZY;
+    c.gnss_reset_s = 2.0f;
+    c.gnss_block_reset_s = 4.0f;
+    CHECK_EQ_INT(mca_ins_init(&g_ins, &c), MCA_OK);
+    const double lat0 = 30.5, lon0 = 114.3, h = 50.0, v = 10.0;
+    const double e2 = 6.69437999014e-3, a = 6378137.0, s = sin(lat0 * DEG_D);
+    const double rm = a * (1.0 - e2) / pow(1.0 - e2 * s * s, 1.5) + h;
+    const float w[3] = {0.0f, 0.0f, 0.0f}, f[3] = {0.0f, 0.0f, -G_TEST};
+    int resets_pos = 0, resets_both = 0, rejected = 0;
+    for (int k = 1; k <= 400 * 40; ++k) {
+        const uint64_t t = (uint64_t)k * 2500u;
+        CHECK_EQ_INT(mca_ins_imu(&g_ins, t, w, f), MCA_OK);
+        if (k % 80 != 40) {
+            continue;
+        }
+        const uint64_t t_fix = t - 100000u;
+        const double ts = (double)t_fix * 1e-6;
+        /* 12-18 s: fix 30 m north (velocity good); 26-30 s: 30 m north and 3 m/s north */
+        const int pos_fault = (ts >= 12.0 && ts < 18.0) || (ts >= 26.0 && ts < 30.0);
+        const int vel_fault = ts >= 26.0 && ts < 30.0;
+        const double north = v * ts + (pos_fault ? 30.0 : 0.0);
+        const float vel[3] = {(float)v + (vel_fault ? 3.0f : 0.0f), 0.0f, 0.0f};
+        mca_gps_fix_t fx = make_fix(t_fix, lat0 + north / rm / DEG_D, lon0, h, vel);
+        CHECK_EQ_INT(mca_ins_gps(&g_ins, &fx), MCA_OK);
+        mca_ins_output_t o;
+        mca_ins_output(&g_ins, &o);
+        rejected += (o.flags & MCA_INS_FLAG_REJECTED) != 0u;
+        if ((o.flags & MCA_INS_FLAG_RESET) != 0u) {
+            /* the reset rows' covariance: R on the diagonal, nothing else in row and column */
+            const float r_p = fx.h_acc_m * fx.h_acc_m;
+            CHECK_CLOSE(g_ins.p[0], r_p, 1e-6 * r_p + 1e-4); /* propagated since the fix: P grows */
+            for (size_t j = 1; j < MCA_INS_NX; ++j) {
+                CHECK(fabsf(g_ins.p[j]) < 1e-3f && fabsf(g_ins.p[j * MCA_INS_NX]) < 1e-3f);
+            }
+            const int both = ts >= 26.0 && ts < 30.5;
+            /* last fused just before each fault: the guard fires on the first fix past its time */
+            resets_pos += (ts >= 12.0 + 4.0 && ts < 12.0 + 4.5) ? 1 : 0;
+            resets_both += (both && ts >= 26.0 + 2.0 && ts < 26.0 + 2.5) ? 1 : 0;
+            if (both && ts < 30.0) {
+                CHECK_CLOSE(g_ins.vel_ned_mps[0], v + 3.0, 0.05); /* the velocity took the fix */
+            }
+        }
+    }
+    CHECK_EQ_INT(resets_pos, 1);
+    CHECK_EQ_INT(resets_both, 1);
+    CHECK(rejected > 40);
+    CHECK(state_finite(&g_ins));
+    CHECK(p_symmetric_psd_diag(&g_ins));
+    /* 10 s after the last fault the INS is back on the track */
+    mca_ins_output_t o;
+    mca_ins_output(&g_ins, &o);
+    CHECK_CLOSE(o.pos_ned_m[0], v * 40.0, 1.0);
+    CHECK_CLOSE(o.vel_ned_mps[0], v, 0.05);
+}
+
 int main(void)
 {
     test_config();
@@ -414,5 +478,6 @@ int main(void)
     test_increments_match_rates();
     test_error_model_structure();
     test_bad_input_leaves_state_unchanged();
+    test_lockup_guards_reset_to_the_fix();
     TEST_MAIN_END();
 }

@@ -203,26 +203,39 @@ def _with_faults(res, faults: list[tuple[float, float, tuple[float, float], tupl
 
 # a position-only fault longer than gnss_block_reset_s (the position block's guard fires while the
 # velocity block is fused), then a position and velocity fault longer than gnss_reset_s (nothing
-# fused: both guards), then a velocity-only fault that the position block rides out
+# fused: both blocks reset), then a velocity-only fault that the fused position block rides out
 FAULTS = [
     (12.0, 19.0, (25.0, -10.0), (0.0, 0.0)),
-    (24.0, 28.0, (-20.0, 15.0), (2.0, -1.5)),
-    (32.0, 36.0, (0.0, 0.0), (-2.5, 1.0)),
+    (32.0, 36.0, (-20.0, 15.0), (2.0, -1.5)),
+    (48.0, 52.0, (0.0, 0.0), (-2.5, 1.0)),
 ]
 GUARDS = {"gnss_block_reset_s": 5.0, "gnss_reset_s": 2.5}
+FAULT_S = 60.0
 
 
 @pytest.mark.parametrize("mode", ["fuzzy", "igg3"])
 def test_c_matches_golden_with_faults_and_guards(mode: str) -> None:
-    res = scenario("fixedwing_turns", seed=2, duration_s=40.0, earth_rate=True)
+    res = scenario("fixedwing_turns", seed=2, duration_s=FAULT_S, earth_rate=True)
     rec = _with_faults(res, FAULTS)
     cfg = core.ins_config("fixedwing", robust=mode, **GUARDS)
     c = core.ins_replay(rec, cfg)
     keys = ("pos_ned_m", "vel_ned_mps", "flags", "n_gps_upd", "n_gps_rej", "gps_t")
     g = gins.replay(rec, gins.config_from_c(core.config_dict(cfg)), core.gnss_to_c(rec.gnss), keys=keys)
-    for key in ("imu_status", "gps_status", "mag_status", "flags", "n_gps_upd", "n_gps_rej"):
-        np.testing.assert_array_equal(c[key], g[key], err_msg=key)
     bits = core.INS_FLAG_BITS
+    flags_c, flags_g = c["flags"], g["flags"]
+    if mode == "igg3":
+        # IGG-III's "detected" (a weight below 1, at k0 = 1.5 standardised residuals) is a soft
+        # decision taken on every fix; after seconds of dead reckoning the two models' positions
+        # differ by ~1 cm, enough to move a residual across k0 on a few fixes of 300 (16 rows of
+        # 24000 measured at 57 s). The weights it gives are continuous in s, so the states stay
+        # within the tolerances below; every other decision must agree exactly.
+        diff = (flags_c ^ flags_g) & bits["detected"]
+        assert np.count_nonzero(diff) < 0.01 * len(diff)
+        keep = np.uint32(0xFFFFFFFF ^ bits["detected"])
+        flags_c, flags_g = flags_c.astype(np.uint32) & keep, flags_g.astype(np.uint32) & keep
+    np.testing.assert_array_equal(flags_c, flags_g, err_msg="flags")
+    for key in ("imu_status", "gps_status", "mag_status", "n_gps_upd", "n_gps_rej"):
+        np.testing.assert_array_equal(c[key], g[key], err_msg=key)
     if mode == "fuzzy":  # the faults were seen, rejected, and both guards fired
         for name in ("detected", "rejected", "reset"):
             assert np.any(c["flags"] & bits[name]), name
@@ -233,7 +246,7 @@ def test_c_matches_golden_with_faults_and_guards(mode: str) -> None:
     )
     # As test_c_matches_golden_step_by_step, but while the fixes are rejected both models
     # dead-reckon for seconds with nothing pulling them together: the float32 drift grows with
-    # that time (9.4e-3 m and 2.5e-3 m/s measured for fuzzy), then the next fused fix shrinks it.
+    # that time (1.1e-2 m and 3.5e-3 m/s measured), then the next fused fix shrinks it.
     assert d_pos.max() < 3e-2 and d_vel.max() < 1e-2
 
 
@@ -243,7 +256,7 @@ def _fix_rows(out: dict, rec) -> np.ndarray:
 
 
 def test_blocks_isolate_the_faulted_measurement_and_guards_end_lockups() -> None:
-    res = scenario("fixedwing_turns", seed=2, duration_s=40.0, earth_rate=True)
+    res = scenario("fixedwing_turns", seed=2, duration_s=FAULT_S, earth_rate=True)
     rec = _with_faults(res, FAULTS)
     t_fix = rec.gnss["t_us"] * 1e-6
     bits = core.INS_FLAG_BITS
@@ -269,13 +282,16 @@ def test_blocks_isolate_the_faulted_measurement_and_guards_end_lockups() -> None
     w = (out["t_us"] > 12.5e6) & (out["t_us"] < 19e6)
     assert np.abs(err[w] - err_clean[w]).max() < 1.0
     assert not np.any(out["flags"] & bits["reset"])
-    # With the guards of GUARDS each long fault is let in after the guard's time, as configured.
+    # With the guards of GUARDS the rows left out too long are reset to the fix, as configured: the
+    # position 5 s into the position fault (the velocity fused), which takes the fault in, and 5 s
+    # after its end, which takes the clean fixes back; position and velocity 2.5 s into the fault
+    # of both (nothing fused); nothing in the velocity fault (the position fused).
     out = core.ins_replay(rec, core.ins_config("fixedwing", robust="fuzzy", **GUARDS))
     rows = _fix_rows(out, rec)
     reset_t = t_fix[(out["flags"][rows] & bits["reset"]) != 0]
-    assert np.any((reset_t > 12.0 + 5.0) & (reset_t < 12.0 + 5.0 + 0.5)), reset_t  # position block
-    assert np.any((reset_t > 24.0 + 2.5) & (reset_t < 24.0 + 2.5 + 0.5)), reset_t  # nothing fused
-    assert not np.any((reset_t > 32.0) & (reset_t < 36.5)), reset_t  # position fused: no guard
+    for lo, hi in ((17.0, 17.6), (23.8, 24.6), (34.2, 34.8)):
+        assert np.any((reset_t > lo) & (reset_t < hi)), (lo, hi, reset_t)
+    assert not np.any((reset_t > 44.0) & (reset_t < 56.0)), reset_t
 
 
 # ------------------------------------------------------------------ INS against the truth

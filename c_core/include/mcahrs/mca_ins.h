@@ -80,10 +80,10 @@ typedef struct {
     float mag_period_s;         /**< at most one magnetometer observation per this, >= 0 */
     float cog_min_speed_mps;    /**< course alignment at or above this ground speed, >= 0 */
     float cog_sigma0_rad;       /**< base course std, > 0 */
-    float gnss_reset_s;         /**< lock-up guard: no GNSS block fused for this long, the next fix is
-                                     fused plain, [0, 600], 0 off */
-    float gnss_block_reset_s;   /**< lock-up guard: one block not fused for this long while the other
-                                     is, that block is fused plain, [0, 600], 0 off */
+    float gnss_reset_s;         /**< lock-up guard: no GNSS block fused for this long, a block the mode
+                                     rejects is reset to the fix, [0, 600], 0 off */
+    float gnss_block_reset_s;   /**< lock-up guard: a block not fused for this long (the other fused),
+                                     the same, [0, 600], 0 off */
     mca_robust_config_t robust; /**< robust/adaptive mode of both GNSS blocks (each its own memory) */
 } mca_ins_config_t;
 
@@ -119,6 +119,7 @@ typedef struct {
     float upd_z[MCA_MEAS_MAX];
     float upd_r[MCA_MEAS_MAX * MCA_MEAS_MAX];
     float dx[MCA_INS_NX];
+    uint8_t upd_idx[MCA_MEAS_MAX];  /**< state index (dr or dv component) of each update row */
     mca_update_report_t rep;      /**< report of the last GNSS position block */
     mca_update_report_t rep_v;    /**< report of the last GNSS velocity block */
     /* time */
@@ -227,13 +228,15 @@ mca_status_t mca_ins_imu_delta(mca_ins_t *ins, uint64_t t_us, const float dtheta
 /**
  * GNSS step (ALGORITHMS.md 10): home, navigation start (with the heading known; course over
  * ground sets it here), or the update against the INS solution at the fix's validity time in two
- * blocks, position rows then velocity rows, each in the configured robust mode with its own
- * memory and the lock-up guards by time (gnss_reset_s, gnss_block_reset_s). Cost: the history
- * search (<= 51 points), two geodetic conversions, two mca_kf_update (n = 15, m <= 3 each), the
- * correction of the state and of the 50 history entries (scripts/fw_report.py section 4b).
+ * blocks, velocity rows then position rows, each in the configured robust mode with its own
+ * memory; a fix whose velocity block was rejected offers its position block only when that block
+ * alone is consistent (T < chi2_m(0.025)); a block left out longer than the lock-up guards
+ * (gnss_reset_s, gnss_block_reset_s) is reset to the fix. Cost: the history search (<= 51
+ * points), two geodetic conversions, two mca_kf_update (n = 15, m <= 3 each), the correction of
+ * the state and of the 50 history entries (scripts/fw_report.py section 4b).
  * @return MCA_ERR_NULL; MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE,
  *         MCA_ERR_TIME_BACKWARDS: nothing changed; MCA_ERR_SINGULAR / MCA_ERR_NONFINITE from a
- *         block: that block not applied (a position block applied before a failing velocity
+ *         block: that block not applied (a velocity block applied before a failing position
  *         block stands, and is counted), n_gps_rej counted; else MCA_OK (also for a fix skipped
  *         before alignment, before the heading is known or on a history miss, and a rejected block).
  */

@@ -33,7 +33,14 @@ from scipy.spatial.transform import Rotation
 
 from mcahrs.errors import BadArgError, BadConfigError, BadDtError, NonFiniteError, TimeBackwardsError
 from mcahrs.golden import geo
-from mcahrs.golden.robust import RobustConfig, RobustState, kf_update, robust_update
+from mcahrs.golden.robust import (
+    RobustConfig,
+    RobustReport,
+    RobustState,
+    chi2_quantile,
+    kf_update,
+    robust_update,
+)
 
 __all__ = [
     "HIST_DT_US",
@@ -722,48 +729,80 @@ class Ins:
         self.fix_speed = math.hypot(vel[0], vel[1]) if has_vne else -1.0
 
     def _gnss_update(self, t_fix: int, H: np.ndarray, nu: np.ndarray, R: np.ndarray, mp: int) -> None:
-        """GNSS update step 5 (ALGORITHMS.md 10): the position block, then the velocity block on
-        the correction the first left, each in the robust mode with its own memory; a block is
-        fused plain (memory cleared) when no block was fused for ``gnss_reset_s``, or this one
-        for ``gnss_block_reset_s``; one correction with what both applied."""
+        """GNSS update step 5 (ALGORITHMS.md 10): the velocity block, then the position block on
+        the correction the first left, each in the robust mode with its own memory. A fix whose
+        velocity block was rejected offers its position block only when that block alone is
+        consistent (T < chi2_m(0.025)); otherwise the position block is held out, not tested:
+        its memory stays. Lock-up guards: a block its mode rejects although it was
+        last fused more than ``gnss_block_reset_s`` ago, or with no block fused for
+        ``gnss_reset_s``, is reset to the fix instead (its states take the fix, their covariance
+        R, uncorrelated; its memory cleared). One correction with what both did."""
         cfg = self.cfg
         stale_any = cfg.gnss_reset_s > 0.0 and t_fix - max(self.t_fuse_pos, self.t_fuse_vel) > _us(
             cfg.gnss_reset_s
         )
-        plain = RobustConfig()
         dx, P = np.zeros(NX), self.P
-        applied, t_sum, flags = False, 0.0, 0
+        applied, t_sum, flags, vel_rejected = False, 0.0, 0, False
         blocks = (
-            (slice(0, mp), "pos", "rs", "last_report"),
             (slice(mp, len(nu)), "vel", "rs_v", "last_report_v"),
+            (slice(0, mp), "pos", "rs", "last_report"),
         )
         for sel, name, rs_name, rep_name in blocks:
-            if sel.stop - sel.start == 0:
+            m_b = sel.stop - sel.start
+            if m_b == 0:
                 continue
-            t_last = getattr(self, f"t_fuse_{name}")
             guard = stale_any or (
-                cfg.gnss_block_reset_s > 0.0 and t_fix - t_last > _us(cfg.gnss_block_reset_s)
+                cfg.gnss_block_reset_s > 0.0
+                and t_fix - getattr(self, f"t_fuse_{name}") > _us(cfg.gnss_block_reset_s)
             )
-            state = RobustState() if guard else getattr(self, rs_name)
+            if name == "pos" and vel_rejected and not guard:
+                C = H[sel] @ P @ H[sel].T + np.diag(R[sel])
+                t_p = float(nu[sel] @ np.linalg.solve(C, nu[sel]))
+                if not t_p < chi2_quantile(0.025, m_b):  # held out with the velocity, not tested
+                    rep = RobustReport(
+                        m=m_b,
+                        nu=nu[sel].copy(),
+                        C=C,
+                        T=t_p,
+                        factor=1.0,
+                        w=np.ones(m_b),
+                        q_scale=1.0,
+                        detected=False,
+                        rejected=True,
+                        alarm=False,
+                    )
+                    setattr(self, rep_name, rep)
+                    t_sum += t_p
+                    flags |= FLAG_REJECTED
+                    continue
             try:
                 dx_b, P_b, rep = robust_update(
-                    dx, P, H[sel], nu[sel], R[sel], plain if guard else cfg.robust, state
+                    dx, P, H[sel], nu[sel], R[sel], cfg.robust, getattr(self, rs_name)
                 )
             except Exception:
                 self.n_rej += 1
-                if applied:  # the position block stands
+                if applied:  # the velocity block stands
                     self.P = P
                     self._correct(dx)
                     self.n_upd += 1
                     self._set_gnss_flags(flags)
                 raise
-            if guard:
+            if guard and rep.rejected:  # left out too long: reset to the fix
+                dx_b, P_b = dx.copy(), P.copy()
+                for i, row in zip(range(sel.start, sel.stop), H[sel], strict=True):
+                    k = int(np.flatnonzero(row[: DV + 3] == 1.0)[0])  # the dr or dv entry of the row
+                    dx_b[k] = nu[i]
+                    P_b[k, :] = 0.0
+                    P_b[:, k] = 0.0
+                    P_b[k, k] = R[i]
                 setattr(self, rs_name, RobustState())
-                rep = dataclasses.replace(rep, reset=True)
+                rep = dataclasses.replace(rep, reset=True, rejected=False)
             setattr(self, rep_name, rep)
             t_sum += rep.T
             flags |= (FLAG_REJECTED if rep.rejected else 0) | (FLAG_DETECTED if rep.detected else 0)
             flags |= FLAG_RESET if rep.reset else 0
+            if name == "vel":
+                vel_rejected = rep.rejected
             if not rep.rejected:
                 dx, P, applied = dx_b, P_b, True
                 setattr(self, f"t_fuse_{name}", t_fix)
