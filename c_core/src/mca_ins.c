@@ -1151,9 +1151,23 @@ static uint32_t gnss_block_flags(const mca_update_report_t *rep)
            (rep->detected ? (uint32_t)MCA_INS_FLAG_DETECTED : 0u) | (rep->reset ? (uint32_t)MCA_INS_FLAG_RESET : 0u);
 }
 
-/* GNSS update steps 3-7 (ALGORITHMS.md 10): the position block, then the velocity block on the
- * correction the first left, each in the robust mode with its own memory and lock-up guards by
- * time; one correction of the state with what both applied. */
+/* What one block did: its T into the sum, its flags, its fuse time when applied. */
+static void gnss_block_done(const mca_update_report_t *rep, uint64_t t, uint64_t *t_fuse, float *t_sum,
+                            uint32_t *fl, int *applied)
+{
+    *t_sum += rep->t_stat;
+    *fl |= gnss_block_flags(rep);
+    if (!rep->rejected) {
+        *applied = 1;
+        *t_fuse = t;
+    }
+}
+
+/* GNSS update steps 3-7 (ALGORITHMS.md 10): the velocity block, then the position block on the
+ * correction the first left, each in the robust mode with its own memory; while the velocity
+ * block is rejected, a position block not consistent alone (T >= chi2_m(0.025)) is held out; a
+ * block its mode rejects after the lock-up guards' time is reset to the fix; one correction of
+ * the state with what both applied. */
 static mca_status_t gnss_update(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s, const float vel[3],
                                 uint8_t vmask, float h_acc, float v_acc, float s_acc)
 {
@@ -1174,13 +1188,8 @@ static mca_status_t gnss_update(mca_ins_t *ins, const mca_gps_fix_t *fix, const 
         const int guard = stale_any || (lim_blk > 0u && t - ins->t_fuse_vel_us > lim_blk);
         st = gnss_block(ins, mp, mv, &ins->upd_r[mp * mp], &ins->rs_v, &ins->rep_v, guard);
         if (st == MCA_OK) {
-            t_sum += ins->rep_v.t_stat;
-            fl |= gnss_block_flags(&ins->rep_v);
             vel_rejected = ins->rep_v.rejected != 0u;
-            if (!ins->rep_v.rejected) {
-                applied = 1;
-                ins->t_fuse_vel_us = t;
-            }
+            gnss_block_done(&ins->rep_v, t, &ins->t_fuse_vel_us, &t_sum, &fl, &applied);
         }
     }
     if (st == MCA_OK && mp > 0u) {
@@ -1197,12 +1206,7 @@ static mca_status_t gnss_update(mca_ins_t *ins, const mca_gps_fix_t *fix, const 
             st = gnss_block(ins, 0u, mp, ins->upd_r, &ins->rs, &ins->rep, guard);
         }
         if (st == MCA_OK) {
-            t_sum += ins->rep.t_stat;
-            fl |= gnss_block_flags(&ins->rep);
-            if (!ins->rep.rejected) {
-                applied = 1;
-                ins->t_fuse_pos_us = t;
-            }
+            gnss_block_done(&ins->rep, t, &ins->t_fuse_pos_us, &t_sum, &fl, &applied);
         }
     }
     if (applied) {
