@@ -65,6 +65,8 @@ MCA_COLD void mca_ins_config_default(mca_ins_config_t *c)
     c->mag_period_s = 0.1f;
     c->cog_min_speed_mps = 3.0f;
     c->cog_sigma0_rad = 0.05f;
+    c->gps_pos_noise_min_m = 0.0f; /* the receiver's accuracies as given (see the table) */
+    c->gps_vel_noise_min_mps = 0.0f;
     c->gnss_reset_s = 30.0f;
     c->gnss_block_reset_s = 120.0f;
     mca_robust_config_default(&c->robust);
@@ -116,7 +118,8 @@ MCA_COLD mca_status_t mca_ins_config_check(const mca_ins_config_t *c)
              pos(c->init_timeout_s) && pos(c->accel_sat_mps2) && pos(c->gps_timeout_s) &&
              pos(c->gps_pos_sigma_m) && pos(c->gps_alt_sigma_m) && pos(c->gps_vel_sigma_mps) &&
              isfinite(c->mag_declination_rad) && pos(c->mag_yaw_sigma_rad) && nonneg(c->mag_period_s) &&
-             nonneg(c->cog_min_speed_mps) && pos(c->cog_sigma0_rad) && nonneg(c->gnss_reset_s) &&
+             nonneg(c->cog_min_speed_mps) && pos(c->cog_sigma0_rad) && nonneg(c->gps_pos_noise_min_m) &&
+             nonneg(c->gps_vel_noise_min_mps) && nonneg(c->gnss_reset_s) &&
              c->gnss_reset_s <= 600.0f && nonneg(c->gnss_block_reset_s) && c->gnss_block_reset_s <= 600.0f &&
              mca_robust_config_check(&c->robust) == MCA_OK;
     /* durations become uint32 microseconds (ALGORITHMS.md 8, Times): keep them far below 71 min */
@@ -1246,7 +1249,11 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
     const int has_vne = (fv.vel_mask & 3u) == 3u;
     const float *vel = fv.vel_ned_mps;
     const uint8_t vmask = fv.vel_mask;
-    const float h_acc = fv.h_acc_m, v_acc = fv.v_acc_m, s_acc = fv.s_acc_mps;
+    /* the receiver's own accuracies, floored (ALGORITHMS.md 10, GNSS update step 3) */
+    const float p_min = ins->cfg.gps_pos_noise_min_m, v_min = ins->cfg.gps_vel_noise_min_mps;
+    /* (mca_gps_fix_read gives finite accuracies > 0; no libm fmaxf in the core) */
+    const float h_acc = fv.h_acc_m > p_min ? fv.h_acc_m : p_min, v_acc = fv.v_acc_m > p_min ? fv.v_acc_m : p_min;
+    const float s_acc = fv.s_acc_mps > v_min ? fv.s_acc_mps : v_min;
     if (!ins->home_set) {
         (void)mca_geo_set_home(&ins->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
         ins->home_set = 1u;

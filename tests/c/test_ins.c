@@ -113,6 +113,13 @@ static void test_config(void)
     b.gnss_block_reset_s = -1.0f;
     CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
     mca_ins_config_default(&b);
+    CHECK(b.gps_pos_noise_min_m == 0.0f && b.gps_vel_noise_min_mps == 0.0f); /* accuracies as given */
+    b.gps_vel_noise_min_mps = -0.1f;
+    CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
+    mca_ins_config_default(&b);
+    b.gps_pos_noise_min_m = NAN;
+    CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
+    mca_ins_config_default(&b);
     b.att0_var_rad2 = 0.0f;
     /* init with a bad configuration touches nothing */
     memset(&g_ins, 0x5a, sizeof(g_ins));

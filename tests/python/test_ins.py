@@ -6,6 +6,7 @@ with the drift printed), robust modes on GNSS outliers, and bad input through th
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pymap3d
@@ -123,6 +124,12 @@ CASES = {
     ),
     "fixedwing_akf": ("fixedwing_turns", 40.0, {"earth_rate": True}, {"robust": "akf"}),
     "multirotor_mag_igg3": ("multirotor_aggressive", 40.0, {"earth_rate": True}, {"robust": "igg3"}),
+    "car_fuzzy_floors": (
+        "car_accel_brake",
+        30.0,
+        {"earth_rate": True},
+        {"robust": "fuzzy", "gps_pos_noise_min_m": 3.0, "gps_vel_noise_min_mps": 0.3},
+    ),
     "multirotor_fuzzy_flat": (
         "multirotor_aggressive",
         30.0,
@@ -411,6 +418,39 @@ def test_robust_modes_resist_position_outliers() -> None:
     # (The clean-data cost of each mode is in benchmarks/bench_ins.py.)
     for mode in ("fta", "akf", "fuzzy", "igg3"):
         assert rms[mode] < 0.8 * rms["plain"], mode
+
+
+CAR = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "car"
+
+
+def test_real_receiver_floors_keep_the_robust_mode_on_real_fixes() -> None:
+    """The car's RTK receiver reports 1.4 cm: taken as given, the INS's innovations are far outside
+    that (T 20 in the median on 6 rows) and the fuzzy detector rejects most real fixes. With
+    EKF2's floors (mcahrs.evaluate.REAL_RECEIVER_FLOORS) it rejects almost none, and its
+    attitude is the plain filter's."""
+    if not CAR.exists():
+        pytest.skip(f"shared data not present: {CAR}")
+    from mcahrs.evaluate import REAL_RECEIVER_FLOORS
+    from mcahrs.io.loaders import load
+
+    rec = load(CAR)
+    over = {"lever_arm_b_m": [0.0, -0.05, 0.0]}
+    rows = None
+    rejected = {}
+    euler = {}
+    for name, floors in (("given", {}), ("floored", REAL_RECEIVER_FLOORS)):
+        for mode in ("plain", "fuzzy"):
+            out = core.ins_replay(rec, core.ins_config("ground", robust=mode, **over, **floors))
+            rows = np.minimum(
+                np.searchsorted(out["t_us"], rec.gnss["t_rx_us"], side="right"), len(out["t_us"]) - 1
+            )
+            rejected[name, mode] = float(np.mean((out["flags"][rows] & core.INS_FLAG_BITS["rejected"]) != 0))
+            euler[name, mode] = out["euler_rad"]
+    print({k: round(v, 3) for k, v in rejected.items()})
+    assert rejected["given", "fuzzy"] > 0.5  # 82 % measured
+    assert rejected["floored", "fuzzy"] < 0.02  # 0 measured
+    d = np.degrees(np.abs(euler["floored", "fuzzy"][:, :2] - euler["floored", "plain"][:, :2]))
+    assert d.max() < 0.05
 
 
 # ------------------------------------------------------------------ bad input through the wrapper

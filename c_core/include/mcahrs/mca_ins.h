@@ -80,6 +80,8 @@ typedef struct {
     float mag_period_s;         /**< at most one magnetometer observation per this, >= 0 */
     float cog_min_speed_mps;    /**< course alignment at or above this ground speed, >= 0 */
     float cog_sigma0_rad;       /**< base course std, > 0 */
+    float gps_pos_noise_min_m;  /**< floor of the fix's h_acc and v_acc (EKF2_GPS_P_NOISE), >= 0, 0 none */
+    float gps_vel_noise_min_mps; /**< floor of the fix's s_acc (EKF2_GPS_V_NOISE), >= 0, 0 none */
     float gnss_reset_s;         /**< lock-up guard: no GNSS block fused for this long, a block the mode
                                      rejects is reset to the fix, [0, 600], 0 off */
     float gnss_block_reset_s;   /**< lock-up guard: a block not fused for this long (the other fused),

@@ -125,6 +125,8 @@ class InsConfig:
     mag_period_s: float = 0.1
     cog_min_speed_mps: float = 3.0
     cog_sigma0_rad: float = 0.05
+    gps_pos_noise_min_m: float = 0.0  # floor of h_acc and v_acc (EKF2_GPS_P_NOISE), 0: none
+    gps_vel_noise_min_mps: float = 0.0  # floor of s_acc (EKF2_GPS_V_NOISE), 0: none
     gnss_reset_s: float = 30.0  # no GNSS block fused for this long: the next fix plain (0: off)
     gnss_block_reset_s: float = 120.0  # one block not fused this long while the other is: plain (0: off)
     # the INS dead-reckons through rejected fixes: its time guards replace the count guard
@@ -191,6 +193,9 @@ class InsConfig:
             raise BadConfigError("yaw_source out of range")
         if any(not math.isfinite(x) or abs(x) > 10.0 for x in self.lever_arm_b_m):
             raise BadConfigError("lever_arm_b_m out of range")
+        for name in ("gps_pos_noise_min_m", "gps_vel_noise_min_mps"):
+            if not fin(name) >= 0.0:
+                raise BadConfigError(f"{name} must be >= 0")
         for name in ("gnss_reset_s", "gnss_block_reset_s"):
             if not 0.0 <= fin(name) <= 600.0:
                 raise BadConfigError(f"{name} must be in [0, 600]")
@@ -691,9 +696,10 @@ class Ins:
             [vel_in[0] if has_vne else 0.0, vel_in[1] if has_vne else 0.0, vel_in[2] if has_vd else 0.0]
         )
         vmask = (has_vne, has_vne, has_vd)
-        h_acc = _accuracy(get("h_acc_m"), self.cfg.gps_pos_sigma_m)
-        v_acc = _accuracy(get("v_acc_m"), self.cfg.gps_alt_sigma_m)
-        s_acc = _accuracy(get("s_acc_mps"), self.cfg.gps_vel_sigma_mps)
+        p_min, v_min = self.cfg.gps_pos_noise_min_m, self.cfg.gps_vel_noise_min_mps
+        h_acc = max(_accuracy(get("h_acc_m"), self.cfg.gps_pos_sigma_m), p_min)
+        v_acc = max(_accuracy(get("v_acc_m"), self.cfg.gps_alt_sigma_m), p_min)
+        s_acc = max(_accuracy(get("s_acc_mps"), self.cfg.gps_vel_sigma_mps), v_min)
         if self.home is None:
             self.home = (lat_e7, lon_e7, alt_mm if has_alt else 0)
             self.g_home = geo.normal_gravity(lat_e7 * 1e-7 * _DEG, self.home[2] * 1e-3)
