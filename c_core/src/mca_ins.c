@@ -1020,8 +1020,9 @@ static void cog_align(mca_ins_t *ins, const float vel[3], int has_vne, float s_a
  * update scratch of the state: position rows first (*m_pos of them), then velocity rows; R as
  * two diagonal blocks one after the other (m_pos x m_pos at upd_r, then the velocity block).
  * Returns the number of rows. */
-static MCA_NOINLINE size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s, const float vel[3],
-                        uint8_t vmask, float h_acc, float v_acc, float s_acc, size_t *m_pos)
+static MCA_NOINLINE size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s,
+                                     const float vel[3], uint8_t vmask, float h_acc, float v_acc, float s_acc,
+                                     size_t *m_pos)
 {
     const int has_alt = (fix->flags & MCA_FIX_ALT) != 0u;
     float ned[3], c[9], cl[3], wl[3], cwl[3], lx[9], clx[9];
@@ -1086,9 +1087,6 @@ static MCA_NOINLINE size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, c
     return m;
 }
 
-/* One block of GNSS rows (ALGORITHMS.md 10, GNSS update step 5): rows [r0, r0 + mb) of the
- * scratch with R at rb, applied to the accumulated correction ins->dx in the configured robust
- * mode with the block's own memory; plain, and the memory cleared, when a lock-up guard fires. */
 /* Lock-up guard reset of rows [r0, r0 + mb) (ALGORITHMS.md 10, GNSS update step 5): their states
  * take the fix (dx = the innovation, replacing what the other block put there), their covariance
  * R, uncorrelated with the rest. Not inlined: the guard is rare, the GNSS step's stack is not.
@@ -1108,6 +1106,10 @@ static MCA_NOINLINE void gnss_reset_block(mca_ins_t *ins, size_t r0, size_t mb, 
     }
 }
 
+/* One block of GNSS rows (ALGORITHMS.md 10, GNSS update step 5): rows [r0, r0 + mb) of the
+ * scratch with R at rb, applied to the accumulated correction ins->dx in the configured robust
+ * mode with the block's own memory; when the mode rejects it and a lock-up guard is due
+ * (guard), the rows are reset to the fix instead and the memory cleared. */
 static mca_status_t gnss_block(mca_ins_t *ins, size_t r0, size_t mb, const float *rb, mca_robust_state_t *rs,
                                mca_update_report_t *rep, int guard)
 {
