@@ -435,15 +435,12 @@ def test_real_receiver_floors_keep_the_robust_mode_on_real_fixes() -> None:
 
     rec = load(CAR)
     over = {"lever_arm_b_m": [0.0, -0.05, 0.0]}
-    rows = None
     rejected = {}
     euler = {}
     for name, floors in (("given", {}), ("floored", REAL_RECEIVER_FLOORS)):
         for mode in ("plain", "fuzzy"):
             out = core.ins_replay(rec, core.ins_config("ground", robust=mode, **over, **floors))
-            rows = np.minimum(
-                np.searchsorted(out["t_us"], rec.gnss["t_rx_us"], side="right"), len(out["t_us"]) - 1
-            )
+            rows = _fix_rows(out, rec)
             rejected[name, mode] = float(np.mean((out["flags"][rows] & core.INS_FLAG_BITS["rejected"]) != 0))
             euler[name, mode] = out["euler_rad"]
     print({k: round(v, 3) for k, v in rejected.items()})

@@ -41,7 +41,7 @@
 #define MCA_INS_FLAG_REJECTED 64    /**< last GNSS update: a block (position or velocity) rejected */
 #define MCA_INS_FLAG_SATURATED 128  /**< a saturated accelerometer sample was seen (sticky) */
 #define MCA_INS_FLAG_DETECTED 256   /**< last GNSS update: the robust mode detected an outlier in a block */
-#define MCA_INS_FLAG_RESET 512      /**< last GNSS update: a lock-up guard made a block plain */
+#define MCA_INS_FLAG_RESET 512      /**< last GNSS update: a lock-up guard reset a block to the fix */
 
 /** INS configuration (ALGORITHMS.md 10 table). mca_ins_config_default fills it. */
 typedef struct {

@@ -20,7 +20,6 @@ One block of functions per block of the spec:
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass, field, fields, replace
@@ -127,8 +126,8 @@ class InsConfig:
     cog_sigma0_rad: float = 0.05
     gps_pos_noise_min_m: float = 0.0  # floor of h_acc and v_acc (EKF2_GPS_P_NOISE), 0: none
     gps_vel_noise_min_mps: float = 0.0  # floor of s_acc (EKF2_GPS_V_NOISE), 0: none
-    gnss_reset_s: float = 30.0  # no GNSS block fused for this long: the next fix plain (0: off)
-    gnss_block_reset_s: float = 120.0  # one block not fused this long while the other is: plain (0: off)
+    gnss_reset_s: float = 30.0  # no block fused this long: a rejected block is reset to the fix (0: off)
+    gnss_block_reset_s: float = 120.0  # one block not fused this long: the same (0: off)
     # the INS dead-reckons through rejected fixes: its time guards replace the count guard
     robust: RobustConfig = field(default_factory=lambda: RobustConfig(reject_reset_n=0))
 
@@ -802,7 +801,7 @@ class Ins:
                     P_b[:, k] = 0.0
                     P_b[k, k] = R[i]
                 setattr(self, rs_name, RobustState())
-                rep = dataclasses.replace(rep, reset=True, rejected=False)
+                rep = replace(rep, reset=True, rejected=False)
             setattr(self, rep_name, rep)
             t_sum += rep.T
             flags |= (FLAG_REJECTED if rep.rejected else 0) | (FLAG_DETECTED if rep.detected else 0)
