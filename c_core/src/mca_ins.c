@@ -69,6 +69,9 @@ MCA_COLD void mca_ins_config_default(mca_ins_config_t *c)
     c->gps_vel_noise_min_mps = 0.0f;
     c->gnss_reset_s = 30.0f;
     c->gnss_block_reset_s = 120.0f;
+    c->gps_pos_tau_s = 0.0f; /* off: the receiver's accuracies taken as white */
+    c->gps_pos_white_m = 0.3f;
+    c->gps_alt_white_m = 0.5f;
     mca_robust_config_default(&c->robust);
     /* the INS dead-reckons on its IMU through rejected fixes: the time guards above replace the
      * count guard, which the CS filter needs (ALGORITHMS.md 10, GNSS update step 5) */
@@ -121,7 +124,8 @@ MCA_COLD mca_status_t mca_ins_config_check(const mca_ins_config_t *c)
              nonneg(c->cog_min_speed_mps) && pos(c->cog_sigma0_rad) && nonneg(c->gps_pos_noise_min_m) &&
              nonneg(c->gps_vel_noise_min_mps) && nonneg(c->gnss_reset_s) &&
              c->gnss_reset_s <= 600.0f && nonneg(c->gnss_block_reset_s) && c->gnss_block_reset_s <= 600.0f &&
-             mca_robust_config_check(&c->robust) == MCA_OK;
+             tau_ok(c->gps_pos_tau_s) && c->gps_pos_tau_s <= 3600.0f && pos(c->gps_pos_white_m) &&
+             pos(c->gps_alt_white_m) && mca_robust_config_check(&c->robust) == MCA_OK;
     /* durations become uint32 microseconds (ALGORITHMS.md 8, Times): keep them far below 71 min */
     ok = ok && c->imu_dt_max_s <= 10.0f && c->init_still_s <= 600.0f && c->init_timeout_s <= 600.0f &&
          c->gps_timeout_s <= 600.0f && c->mag_period_s <= 600.0f;
@@ -567,6 +571,16 @@ static void cov_propagate(mca_ins_t *ins, float t_s, const float f_n[3])
             }
         }
     }
+    if (c->gps_pos_tau_s > 0.0f) {
+        /* receiver slow error (GNSS update step 3): dr grows as 2 c^2 (1 - exp(-a / tau)) over the
+         * time a since the position was last applied, the variance of the change of a
+         * Gauss-Markov error of variance c^2 over a */
+        const float age = ins->t_imu_us > ins->t_fuse_pos_us ? span_s(ins->t_fuse_pos_us, ins->t_imu_us) : 0.0f;
+        const float g = t_s * mca_expf(-age / c->gps_pos_tau_s);
+        for (size_t i = 0; i < 3u; ++i) {
+            p[(MCA_INS_DR + i) * (NX + 1u)] += g * ins->rx_q[i < 2u ? 0u : 1u];
+        }
+    }
     for (size_t i = 0; i < NX; ++i) { /* mirror the upper triangle */
         for (size_t j = i + 1u; j < NX; ++j) {
             p[j * NX + i] = p[i * NX + j];
@@ -917,6 +931,22 @@ mca_status_t mca_ins_imu_delta(mca_ins_t *ins, uint64_t t_us, const float dth[3]
 
 /* ------------------------------------------------------------------------ GNSS */
 
+/* Receiver position error (ALGORITHMS.md 10, GNSS update step 3): with gps_pos_tau_s > 0 the
+ * fix's variances h_acc^2, v_acc^2 split into a white part (the configured one, at most the whole),
+ * the rows' R, and a slow Gauss-Markov part c^2, which grows the INS position between the times
+ * it is applied (rx_q = 2 c^2 / tau, which the state keeps for the covariance propagation once
+ * the fix is taken); else all white. */
+static void receiver_error(const mca_ins_config_t *c, float h_acc, float v_acc, float r_pos[2], float rx_q[2])
+{
+    const float acc[2] = {h_acc, v_acc}, white[2] = {c->gps_pos_white_m, c->gps_alt_white_m};
+    for (size_t i = 0; i < 2u; ++i) {
+        const float var = acc[i] * acc[i], w2 = white[i] * white[i];
+        const int split = c->gps_pos_tau_s > 0.0f && var > w2;
+        r_pos[i] = split ? w2 : var;
+        rx_q[i] = split ? 2.0f * (var - w2) / c->gps_pos_tau_s : 0.0f;
+    }
+}
+
 /* Start of navigation (ALGORITHMS.md 10, Initial alignment). */
 static void start_nav(mca_ins_t *ins, const mca_gps_fix_t *fix, const float vel[3], uint8_t vmask, float h_acc,
                       float v_acc, float s_acc)
@@ -995,6 +1025,8 @@ static void start_nav(mca_ins_t *ins, const mca_gps_fix_t *fix, const float vel[
     mca_robust_state_init(&ins->rs_v);
     ins->t_fuse_pos_us = fix->t_us;
     ins->t_fuse_vel_us = fix->t_us;
+    ins->pos_out = 0u;
+    ins->vel_out = 0u;
 }
 
 /* Course-over-ground yaw alignment when due (ALGORITHMS.md 10, Yaw); q_fix is turned too. */
@@ -1017,11 +1049,12 @@ static void cog_align(mca_ins_t *ins, const float vel[3], int has_vne, float s_a
 }
 
 /* Rows, innovation and noise of one fix (ALGORITHMS.md 10, GNSS update steps 3-4) into the
- * update scratch of the state: position rows first (*m_pos of them), then velocity rows; R as
+ * update scratch of the state: position rows first (*m_pos of them, R r_pos[0] on N and E,
+ * r_pos[1] on D), then velocity rows (s_acc^2); R as
  * two diagonal blocks one after the other (m_pos x m_pos at upd_r, then the velocity block).
  * Returns the number of rows. */
 static MCA_NOINLINE size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s,
-                                     const float vel[3], uint8_t vmask, float h_acc, float v_acc, float s_acc,
+                                     const float vel[3], uint8_t vmask, const float r_pos[2], float s_acc,
                                      size_t *m_pos)
 {
     const int has_alt = (fix->flags & MCA_FIX_ALT) != 0u;
@@ -1057,7 +1090,7 @@ static MCA_NOINLINE size_t gnss_rows(mca_ins_t *ins, const mca_gps_fix_t *fix, c
             row[MCA_INS_PHI + j] = -skew_cl[i * 3u + j];
         }
         z[m] = ned[i] - s->r[i] - cl[i];
-        var[m] = i < 2u ? h_acc * h_acc : v_acc * v_acc;
+        var[m] = r_pos[i < 2u ? 0u : 1u];
         ++m;
     }
     const size_t mp = m;
@@ -1168,16 +1201,31 @@ static void gnss_block_done(const mca_update_report_t *rep, uint64_t t, uint64_t
     }
 }
 
+/* A block held out (ALGORITHMS.md 10, GNSS update step 5): rejected without being offered to its
+ * mode, whose memory stays; its report's T is the block's own against the prior. */
+static void gnss_hold_out(mca_ins_t *ins, mca_update_report_t *rep, size_t r0, size_t mb, const float *rb,
+                          uint8_t detected)
+{
+    const float t_stat = gnss_block_t(ins, r0, mb, rb);
+    memset(rep, 0, sizeof(*rep));
+    rep->m = (uint8_t)mb;
+    rep->mode = ins->cfg.robust.mode;
+    rep->t_stat = t_stat;
+    rep->rejected = 1u;
+    rep->detected = detected;
+}
+
 /* GNSS update steps 3-7 (ALGORITHMS.md 10): the velocity block, then the position block on the
- * correction the first left, each in the robust mode with its own memory; while the velocity
- * block is rejected, a position block not consistent alone (T >= chi2_m(0.025)) is held out; a
- * block its mode rejects after the lock-up guards' time is reset to the fix; one correction of
- * the state with what both applied. */
+ * correction the first left, each in the robust mode with its own memory. A velocity block after
+ * a rejected one waits for the position: it is held out while the position block alone is not
+ * consistent (T >= chi2_m(0.025)). While the velocity is rejected, the position block is held out
+ * unless it was applied on the fix before. A block its mode rejects after the lock-up guards' time
+ * is reset to the fix; one correction of the state with what both applied. */
 static mca_status_t gnss_update(mca_ins_t *ins, const mca_gps_fix_t *fix, const ins_sol_t *s, const float vel[3],
-                                uint8_t vmask, float h_acc, float v_acc, float s_acc)
+                                uint8_t vmask, const float r_pos[2], float s_acc)
 {
     size_t mp = 0u;
-    const size_t m = gnss_rows(ins, fix, s, vel, vmask, h_acc, v_acc, s_acc, &mp);
+    const size_t m = gnss_rows(ins, fix, s, vel, vmask, r_pos, s_acc, &mp);
     const size_t mv = m - mp;
     memset(ins->dx, 0, sizeof(ins->dx));
     const uint64_t t = fix->t_us;
@@ -1191,26 +1239,31 @@ static mca_status_t gnss_update(mca_ins_t *ins, const mca_gps_fix_t *fix, const 
     int vel_rejected = 0;
     if (mv > 0u) {
         const int guard = stale_any || (lim_blk > 0u && t - ins->t_fuse_vel_us > lim_blk);
-        st = gnss_block(ins, mp, mv, &ins->upd_r[mp * mp], &ins->rs_v, &ins->rep_v, guard);
+        const float *rv = &ins->upd_r[mp * mp];
+        if (ins->vel_out && !guard && mp > 0u &&
+            !(gnss_block_t(ins, 0u, mp, ins->upd_r) < mca_chi2_quantile(mp, MCA_CHI2_2P5E2))) {
+            /* after a rejected velocity, the position alone disagrees: the INS has no way yet to
+             * tell a velocity fault that its own coast has grown to cover from a clean velocity */
+            gnss_hold_out(ins, &ins->rep_v, mp, mv, rv, 1u);
+        } else {
+            st = gnss_block(ins, mp, mv, rv, &ins->rs_v, &ins->rep_v, guard);
+        }
         if (st == MCA_OK) {
             vel_rejected = ins->rep_v.rejected != 0u;
+            ins->vel_out = (uint8_t)vel_rejected;
             gnss_block_done(&ins->rep_v, t, &ins->t_fuse_vel_us, &t_sum, &fl, &applied);
         }
     }
     if (st == MCA_OK && mp > 0u) {
         const int guard = stale_any || (lim_blk > 0u && t - ins->t_fuse_pos_us > lim_blk);
-        const float t_p = vel_rejected && !guard ? gnss_block_t(ins, 0u, mp, ins->upd_r) : 0.0f;
-        if (vel_rejected && !guard && !(t_p < mca_chi2_quantile(mp, MCA_CHI2_2P5E2))) {
-            /* held out with the velocity: not offered to its detector, whose memory stays */
-            memset(&ins->rep, 0, sizeof(ins->rep));
-            ins->rep.m = (uint8_t)mp;
-            ins->rep.mode = ins->cfg.robust.mode;
-            ins->rep.t_stat = t_p;
-            ins->rep.rejected = 1u;
+        if (vel_rejected && !guard && ins->pos_out) {
+            /* held out with the velocity: a fault of both takes the position out at its start */
+            gnss_hold_out(ins, &ins->rep, 0u, mp, ins->upd_r, 0u);
         } else {
             st = gnss_block(ins, 0u, mp, ins->upd_r, &ins->rs, &ins->rep, guard);
         }
         if (st == MCA_OK) {
+            ins->pos_out = ins->rep.rejected;
             gnss_block_done(&ins->rep, t, &ins->t_fuse_pos_us, &t_sum, &fl, &applied);
         }
     }
@@ -1256,6 +1309,8 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
     /* (mca_gps_fix_read gives finite accuracies > 0; no libm fmaxf in the core) */
     const float h_acc = fv.h_acc_m > p_min ? fv.h_acc_m : p_min, v_acc = fv.v_acc_m > p_min ? fv.v_acc_m : p_min;
     const float s_acc = fv.s_acc_mps > v_min ? fv.s_acc_mps : v_min;
+    float r_pos[2], rx_q[2];
+    receiver_error(&ins->cfg, h_acc, v_acc, r_pos, rx_q);
     if (!ins->home_set) {
         (void)mca_geo_set_home(&ins->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
         ins->home_set = 1u;
@@ -1282,7 +1337,7 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
             ins->n_gps_skip++;
         } else {
             ins->flags &= ~(uint32_t)MCA_INS_FLAG_HIST_MISS;
-            st = gnss_update(ins, fix, &s, vel, vmask, h_acc, v_acc, s_acc);
+            st = gnss_update(ins, fix, &s, vel, vmask, r_pos, s_acc);
             if (st != MCA_OK) {
                 return st; /* the failed block changed nothing (ALGORITHMS.md 10, GNSS update step 5) */
             }
@@ -1290,6 +1345,8 @@ mca_status_t mca_ins_gps(mca_ins_t *ins, const mca_gps_fix_t *fix)
     }
     ins->have_fix = 1u;
     ins->t_lastfix_us = fix->t_us;
+    ins->rx_q[0] = rx_q[0];
+    ins->rx_q[1] = rx_q[1];
     ins->fix_speed_mps = has_vne ? sqrtf(vel[0] * vel[0] + vel[1] * vel[1]) : -1.0f;
     return st;
 }

@@ -120,6 +120,21 @@ static void test_config(void)
     b.gps_pos_noise_min_m = NAN;
     CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
     mca_ins_config_default(&b);
+    CHECK(b.gps_pos_tau_s == 0.0f); /* receiver error model off: accuracies white */
+    b.gps_pos_tau_s = 60.0f;
+    CHECK_EQ_INT(mca_ins_config_check(&b), MCA_OK);
+    const float bad_tau[] = {0.5f, -1.0f, 3601.0f, NAN, INFINITY};
+    for (size_t i = 0; i < sizeof(bad_tau) / sizeof(bad_tau[0]); ++i) {
+        b.gps_pos_tau_s = bad_tau[i];
+        CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
+    }
+    mca_ins_config_default(&b);
+    b.gps_pos_white_m = 0.0f;
+    CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
+    mca_ins_config_default(&b);
+    b.gps_alt_white_m = NAN;
+    CHECK_EQ_INT(mca_ins_config_check(&b), MCA_ERR_BAD_CONFIG);
+    mca_ins_config_default(&b);
     b.att0_var_rad2 = 0.0f;
     /* init with a bad configuration touches nothing */
     memset(&g_ins, 0x5a, sizeof(g_ins));

@@ -86,6 +86,11 @@ typedef struct {
                                      rejects is reset to the fix, [0, 600], 0 off */
     float gnss_block_reset_s;   /**< lock-up guard: a block not fused for this long (the other fused),
                                      the same, [0, 600], 0 off */
+    float gps_pos_tau_s;        /**< receiver position error model (ALGORITHMS.md 10, GNSS update step 3):
+                                     correlation time of its slow part, 0 off (h_acc, v_acc white),
+                                     else [1, 3600] */
+    float gps_pos_white_m;      /**< its white part, N and E each (the rows' R), > 0 */
+    float gps_alt_white_m;      /**< its white part, D, > 0 */
     mca_robust_config_t robust; /**< robust/adaptive mode of both GNSS blocks (each its own memory) */
 } mca_ins_config_t;
 
@@ -149,6 +154,9 @@ typedef struct {
     float yaw_var_align;          /**< variance of the aligning yaw observation */
     float bg0_var;                /**< initial gyro bias variance chosen by the alignment */
     uint8_t level_still;          /**< the last levelling was from a still window */
+    float rx_q[2];                /**< receiver slow-error growth 2 c^2 / tau of the last fix, N/E and D */
+    uint8_t pos_out;              /**< the last fix's position block was rejected or held out */
+    uint8_t vel_out;              /**< the same for the velocity block (fixes without velocity leave it) */
     float fix_speed_mps;          /**< ground speed of the last fix (-1: it had no NE velocity) */
     float g_align_mps2;           /**< gravity used by the still test */
     uint8_t have_imu;
@@ -210,7 +218,7 @@ mca_status_t mca_ins_init(mca_ins_t *ins, const mca_ins_config_t *cfg);
  * IMU step with rates (ALGORITHMS.md 10): alignment (and re-levelling while stopped), attitude-
  * only propagation until navigation starts, or mechanization plus, once per cov_dt_s, the
  * covariance propagation and, once per 20 ms, a history entry (one geodetic conversion): on the
- * Cortex-M4F (-Os) 13.7k instructions mean, 53.8k on the steps that propagate the covariance.
+ * Cortex-M4F (-Os) 14.0k instructions mean, 55.0k on the steps that propagate the covariance.
  * @param[in] t_us         sample time, IMU clock
  * @param[in] gyro_b_rps   body rate
  * @param[in] accel_b_mps2 specific force
@@ -231,8 +239,9 @@ mca_status_t mca_ins_imu_delta(mca_ins_t *ins, uint64_t t_us, const float dtheta
  * GNSS step (ALGORITHMS.md 10): home, navigation start (with the heading known; course over
  * ground sets it here), or the update against the INS solution at the fix's validity time in two
  * blocks, velocity rows then position rows, each in the configured robust mode with its own
- * memory; a fix whose velocity block was rejected offers its position block only when that block
- * alone is consistent (T < chi2_m(0.025)); a block left out longer than the lock-up guards
+ * memory; a velocity block after a rejected one is offered only when the position block alone is
+ * consistent (T < chi2_m(0.025)), and while the velocity is rejected the position block only when
+ * it was applied on the fix before; a block left out longer than the lock-up guards
  * (gnss_reset_s, gnss_block_reset_s) is reset to the fix. Cost: the history search (<= 51
  * points), two geodetic conversions, two mca_kf_update (n = 15, m <= 3 each), the correction of
  * the state and of the 50 history entries (scripts/fw_report.py section 4b).

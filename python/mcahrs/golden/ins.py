@@ -128,6 +128,11 @@ class InsConfig:
     gps_vel_noise_min_mps: float = 0.0  # floor of s_acc (EKF2_GPS_V_NOISE), 0: none
     gnss_reset_s: float = 30.0  # no block fused this long: a rejected block is reset to the fix (0: off)
     gnss_block_reset_s: float = 120.0  # one block not fused this long: the same (0: off)
+    # receiver position error: correlation time of its slow part (0: off, accuracies white) and
+    # its white part, N and E each and D
+    gps_pos_tau_s: float = 0.0
+    gps_pos_white_m: float = 0.3
+    gps_alt_white_m: float = 0.5
     # the INS dead-reckons through rejected fixes: its time guards replace the count guard
     robust: RobustConfig = field(default_factory=lambda: RobustConfig(reject_reset_n=0))
 
@@ -177,13 +182,17 @@ class InsConfig:
             "gps_vel_sigma_mps",
             "mag_yaw_sigma_rad",
             "cog_sigma0_rad",
+            "gps_pos_white_m",
+            "gps_alt_white_m",
         ):
             if not fin(name) > 0.0:
                 raise BadConfigError(f"{name} must be > 0")
-        for name in ("gyro_bias_tau_s", "accel_bias_tau_s"):
+        for name in ("gyro_bias_tau_s", "accel_bias_tau_s", "gps_pos_tau_s"):
             v = fin(name)
             if not (v == 0.0 or v >= 1.0):
                 raise BadConfigError(f"{name} must be 0 or >= 1")
+        if self.gps_pos_tau_s > 3600.0:
+            raise BadConfigError("gps_pos_tau_s must be <= 3600")
         fin("yaw0_rad")
         fin("mag_declination_rad")
         if self.cov_dt_s > 0.1 or self.earth_rate not in (0, 1) or self.transport_rate not in (0, 1):
@@ -428,6 +437,8 @@ class Ins:
         self.rs = RobustState()  # position block; its AKF factor scales Q
         self.rs_v = RobustState()  # velocity block
         self.t_fuse_pos = self.t_fuse_vel = 0
+        self.pos_out = self.vel_out = False  # the last fix's block rejected or held out
+        self.rx_q = np.zeros(2)  # receiver slow-error growth 2 c^2 / tau of the last fix (N/E, D)
         self.home: tuple[int, int, int] | None = None
         self.hist: deque[_HistEntry] = deque(maxlen=HIST_LEN)
         self.t_imu = self.t_first = self.t_lastfix = self.t_lastmag = 0
@@ -620,6 +631,12 @@ class Ins:
     def _propagate(self, T: float, f_n: np.ndarray) -> None:  # noqa: N803
         phi, qd = discretize(self.F(f_n), process_noise_density(self.cfg, self.rs.q_scale), T)
         P = phi @ self.P @ phi.T + qd
+        tau = self.cfg.gps_pos_tau_s
+        if tau > 0.0:
+            # receiver slow error: dr grows as 2 c^2 (1 - exp(-a / tau)), a the time since the
+            # position was last applied (ALGORITHMS.md 10, GNSS update step 3)
+            g = T * math.exp(-max(self.t_imu - self.t_fuse_pos, 0) * 1e-6 / tau)
+            P[[0, 1, 2], [0, 1, 2]] += g * self.rx_q[[0, 0, 1]]
         self.P = 0.5 * (P + P.T)
 
     # ---------------------------------------------------------------- history
@@ -699,6 +716,7 @@ class Ins:
         h_acc = max(_accuracy(get("h_acc_m"), self.cfg.gps_pos_sigma_m), p_min)
         v_acc = max(_accuracy(get("v_acc_m"), self.cfg.gps_alt_sigma_m), p_min)
         s_acc = max(_accuracy(get("s_acc_mps"), self.cfg.gps_vel_sigma_mps), v_min)
+        r_pos, rx_q = self._receiver_error(h_acc, v_acc)
         if self.home is None:
             self.home = (lat_e7, lon_e7, alt_mm if has_alt else 0)
             self.g_home = geo.normal_gravity(lat_e7 * 1e-7 * _DEG, self.home[2] * 1e-3)
@@ -722,31 +740,45 @@ class Ins:
                 rows += [("v", i) for i in range(3) if vmask[i]]
                 ned = geo.ned_from_home(lat_e7, lon_e7, alt, *self.home)
                 H, nu = gnss_rows(sol, np.asarray(self.cfg.lever_arm_b_m, float), ned, vel, rows)
-                R = np.array(
-                    [
-                        h_acc**2 if (k == "p" and i < 2) else v_acc**2 if k == "p" else s_acc**2
-                        for k, i in rows
-                    ]
-                )
+                R = np.array([r_pos[0 if i < 2 else 1] if k == "p" else s_acc**2 for k, i in rows])
                 self._gnss_update(t_fix, H, nu, R, sum(k == "p" for k, _ in rows))
         self.have_fix = True
         self.t_lastfix = t_fix
+        self.rx_q = rx_q
         self.fix_speed = math.hypot(vel[0], vel[1]) if has_vne else -1.0
+
+    def _receiver_error(self, h_acc: float, v_acc: float) -> tuple[np.ndarray, np.ndarray]:
+        """GNSS update step 3: with ``gps_pos_tau_s`` > 0 the fix's h_acc^2 and v_acc^2 split into
+        the configured white part (at most the whole), the rows' R, and a slow Gauss-Markov part
+        c^2, whose growth rate 2 c^2 / tau the covariance propagation applies; else R is all of it."""
+        cfg = self.cfg
+        var = np.array([h_acc**2, v_acc**2])
+        white = np.array([cfg.gps_pos_white_m**2, cfg.gps_alt_white_m**2])
+        if cfg.gps_pos_tau_s <= 0.0:
+            return var, np.zeros(2)
+        r = np.minimum(var, white)
+        return r, 2.0 * (var - r) / cfg.gps_pos_tau_s
 
     def _gnss_update(self, t_fix: int, H: np.ndarray, nu: np.ndarray, R: np.ndarray, mp: int) -> None:
         """GNSS update step 5 (ALGORITHMS.md 10): the velocity block, then the position block on
-        the correction the first left, each in the robust mode with its own memory. A fix whose
-        velocity block was rejected offers its position block only when that block alone is
-        consistent (T < chi2_m(0.025)); otherwise the position block is held out, not tested:
-        its memory stays. Lock-up guards: a block its mode rejects although it was
-        last fused more than ``gnss_block_reset_s`` ago, or with no block fused for
-        ``gnss_reset_s``, is reset to the fix instead (its states take the fix, their covariance
-        R, uncorrelated; its memory cleared). One correction with what both did."""
+        the correction the first left, each in the robust mode with its own memory. Hold-outs
+        (rejected without being offered to the mode, whose memory stays): a velocity block after a
+        rejected one while the position block alone is not consistent (T >= chi2_m(0.025)), and,
+        while the velocity is rejected, a position block not applied on the fix before. Lock-up
+        guards: a block its mode rejects although it was last fused more than
+        ``gnss_block_reset_s`` ago, or with no block fused for ``gnss_reset_s``, is reset to the
+        fix instead (its states take the fix, their covariance R, uncorrelated; its memory
+        cleared). One correction with what both did."""
         cfg = self.cfg
         stale_any = cfg.gnss_reset_s > 0.0 and t_fix - max(self.t_fuse_pos, self.t_fuse_vel) > _us(
             cfg.gnss_reset_s
         )
         dx, P = np.zeros(NX), self.P
+
+        def own_t(sel: slice) -> tuple[float, np.ndarray]:  # the block alone against the prior
+            C = H[sel] @ P @ H[sel].T + np.diag(R[sel])
+            return float(nu[sel] @ np.linalg.solve(C, nu[sel])), C
+
         applied, t_sum, flags, vel_rejected = False, 0.0, 0, False
         blocks = (
             (slice(mp, len(nu)), "vel", "rs_v", "last_report_v"),
@@ -760,26 +792,30 @@ class Ins:
                 cfg.gnss_block_reset_s > 0.0
                 and t_fix - getattr(self, f"t_fuse_{name}") > _us(cfg.gnss_block_reset_s)
             )
-            if name == "pos" and vel_rejected and not guard:
-                C = H[sel] @ P @ H[sel].T + np.diag(R[sel])
-                t_p = float(nu[sel] @ np.linalg.solve(C, nu[sel]))
-                if not t_p < chi2_quantile(0.025, m_b):  # held out with the velocity, not tested
-                    rep = RobustReport(
-                        m=m_b,
-                        nu=nu[sel].copy(),
-                        C=C,
-                        T=t_p,
-                        factor=1.0,
-                        w=np.ones(m_b),
-                        q_scale=1.0,
-                        detected=False,
-                        rejected=True,
-                        alarm=False,
-                    )
-                    setattr(self, rep_name, rep)
-                    t_sum += t_p
-                    flags |= FLAG_REJECTED
-                    continue
+            if name == "vel":
+                hold = self.vel_out and mp > 0 and not own_t(slice(0, mp))[0] < chi2_quantile(0.025, mp)
+            else:
+                hold = vel_rejected and self.pos_out
+            if hold and not guard:
+                t_b, C = own_t(sel)
+                rep = RobustReport(
+                    m=m_b,
+                    nu=nu[sel].copy(),
+                    C=C,
+                    T=t_b,
+                    factor=1.0,
+                    w=np.ones(m_b),
+                    q_scale=1.0,
+                    detected=name == "vel",  # the position's disagreement is a detection
+                    rejected=True,
+                    alarm=False,
+                )
+                setattr(self, rep_name, rep)
+                setattr(self, f"{name}_out", True)
+                t_sum += t_b
+                flags |= FLAG_REJECTED | (FLAG_DETECTED if rep.detected else 0)
+                vel_rejected = vel_rejected or name == "vel"
+                continue
             try:
                 dx_b, P_b, rep = robust_update(
                     dx, P, H[sel], nu[sel], R[sel], cfg.robust, getattr(self, rs_name)
@@ -806,6 +842,7 @@ class Ins:
             t_sum += rep.T
             flags |= (FLAG_REJECTED if rep.rejected else 0) | (FLAG_DETECTED if rep.detected else 0)
             flags |= FLAG_RESET if rep.reset else 0
+            setattr(self, f"{name}_out", rep.rejected)
             if name == "vel":
                 vel_rejected = rep.rejected
             if not rep.rejected:
@@ -871,6 +908,7 @@ class Ins:
         self.nav = True
         self.rs, self.rs_v = RobustState(), RobustState()
         self.t_fuse_pos = self.t_fuse_vel = t_fix
+        self.pos_out = self.vel_out = False
 
     def _cog_align(self, vel: np.ndarray, has_vne: bool, s_acc: float, rot_fix: Rotation) -> Rotation:
         """Course-over-ground yaw alignment when due; returns rot_fix turned likewise."""
