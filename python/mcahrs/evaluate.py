@@ -469,39 +469,17 @@ def golden_agreement(c_out: dict[str, np.ndarray], g_out: dict[str, np.ndarray])
 REAL_RECEIVER_FLOORS = {"gps_pos_noise_min_m": 0.5, "gps_vel_noise_min_mps": 0.3}
 
 
-def run_ins(rec: Recording, preset: str) -> tuple[MethodRun | None, str]:
-    """The 15-state INS if :mod:`mcahrs.core` exposes one (``ins_replay``), else (None, why);
-    with :data:`REAL_RECEIVER_FLOORS` (what it evaluates are real recordings)."""
+def run_ins(rec: Recording, preset: str) -> tuple[MethodRun, str]:
+    """The 15-state INS of the C core on the same samples, with :data:`REAL_RECEIVER_FLOORS`
+    (what it evaluates are real recordings); roll and pitch NaN until it is aligned."""
     from mcahrs import core
 
-    fn = getattr(core, "ins_replay", None)
-    if fn is None:
-        return None, "15-state INS: skipped, mcahrs.core has no ins_replay yet (being written)"
-    how = "core.ins_replay"
-    try:
-        maker = getattr(core, "ins_config", None)
-        if maker is not None:
-            out = fn(rec, maker(preset, **REAL_RECEIVER_FLOORS))
-            how += f" with core.ins_config({preset!r}) and EKF2's accuracy floors {REAL_RECEIVER_FLOORS}"
-        else:
-            out = fn(rec)
-    except Exception as exc:  # noqa: BLE001 - a new API must not stop the evaluation
-        return None, f"15-state INS: core.ins_replay failed ({type(exc).__name__}: {exc})"
-    if "euler_rad" in out:
-        e = np.asarray(out["euler_rad"], np.float64)
-        roll, pitch = e[:, 0], e[:, 1]
-    elif "q_nb" in out:
-        roll, pitch = quat_roll_pitch(np.asarray(out["q_nb"], np.float64))
-    else:
-        return None, f"15-state INS: core.ins_replay output has neither q_nb nor euler_rad ({sorted(out)})"
-    if len(roll) != len(rec.imu):
-        return None, f"15-state INS: {len(roll)} output rows for {len(rec.imu)} IMU samples; not compared"
-    bit = getattr(core, "INS_FLAG_BITS", {}).get("aligned")
-    if bit is not None and "flags" in out:
-        aligned = (np.asarray(out["flags"]) & bit) != 0
-        roll, pitch = np.where(aligned, roll, np.nan), np.where(aligned, pitch, np.nan)
-    run = MethodRun(INS, roll, pitch, how, dict(out))
-    return run, f"15-state INS: {how} (C core, same samples)"
+    out = core.ins_replay(rec, core.ins_config(preset, **REAL_RECEIVER_FLOORS))
+    e = np.asarray(out["euler_rad"], np.float64)
+    aligned = (np.asarray(out["flags"]) & core.INS_FLAG_BITS["aligned"]) != 0
+    roll, pitch = np.where(aligned, e[:, 0], np.nan), np.where(aligned, e[:, 1], np.nan)
+    how = f"core.ins_replay with core.ins_config({preset!r}) and EKF2's floors {REAL_RECEIVER_FLOORS}"
+    return MethodRun(INS, roll, pitch, how, dict(out)), f"15-state INS: {how} (C core, same samples)"
 
 
 def _baseline_run(name: str, fn: Any, rec: Recording) -> tuple[MethodRun | None, str]:
@@ -682,8 +660,7 @@ def evaluate(rec: Recording, preset: str = "auto", *, path: str | Path | None = 
                 runs.append(r)
     ins, note = run_ins(rec, preset)
     ev.notes.append(note)
-    if ins is not None:
-        runs.append(ins)
+    runs.append(ins)
     ev.runs = runs
     mc = runs[0]
     assert mc.out is not None
