@@ -680,16 +680,34 @@ def ins_flags(run: Run, mode: str) -> np.ndarray:
     return run.valid & ((run.out["flags"][run.rows] & core.INS_FLAG_BITS["detected"]) != 0)
 
 
-def bench_ins_scenario(name: str, seed: int, duration_s: float) -> list[dict]:
+def receiver_model(res: object) -> dict:
+    """The INS's receiver position error model (ALGORITHMS.md 10, GNSS update step 3) set to the
+    simulator's receiver: its Gauss-Markov correlation time and its white parts."""
+    p = res.params
+    return {
+        "gps_pos_tau_s": p.gps_pos_tau_s,
+        "gps_pos_white_m": p.gps_pos_white_h_m,
+        "gps_alt_white_m": p.gps_pos_white_v_m,
+    }
+
+
+def bench_ins_scenario(name: str, seed: int, duration_s: float, white: bool = False) -> list[dict]:
     preset = INS_PRESETS[name]
     res = scenario(name, seed=seed, duration_s=duration_s, earth_rate=True)  # the INS removes it
     rec = res.recording
     t_fix_s = rec.gnss["t_us"] * 1e-6
     faults = plan_faults(t_fix_s, duration_s, np.random.default_rng(seed + 1000))
     bad = inject(rec, faults)
-    print(f"\n=== INS, {name} (preset {preset}, seed {seed}, the same faults) ===")
+    receiver = {} if white else receiver_model(res)
+    how = "accuracies taken as white"
+    if not white:
+        r = receiver
+        how = f"receiver error model: tau {r['gps_pos_tau_s']:.0f} s, white {r['gps_pos_white_m']} / "
+        how += f"{r['gps_alt_white_m']} m"
+    print(f"\n=== INS, {name} (preset {preset}, seed {seed}, the same faults; GNSS {how}) ===")
     rows = []
-    for label, mode, extra in INS_MODES:
+    for label, mode, base in INS_MODES:
+        extra = base | receiver
         clean, run = ins_replay(rec, res, preset, mode, extra), ins_replay(bad, res, preset, mode, extra)
         flags = ins_flags(run, mode)
         rows.append(
@@ -785,6 +803,9 @@ def main() -> None:
     ap.add_argument("--own-test", action="store_true", help="test the CS prediction, not the IMU-aided one")
     ap.add_argument("--no-ins", action="store_true", help="leave out the INS runs")
     ap.add_argument("--ins-only", action="store_true", help="only the INS runs")
+    ap.add_argument(
+        "--ins-white", action="store_true", help="INS without the receiver error model (accuracies as white)"
+    )
     args = ap.parse_args()
     global OWN_TEST
     OWN_TEST = args.own_test
@@ -801,7 +822,7 @@ def main() -> None:
         f"Errors from the first fix + {SETTLE_S:.0f} s; roll/pitch RMS over both angles; pos/vel RMS 3-D."
     )
     if not args.no_ins:
-        ins = {n: bench_ins_scenario(n, args.seed, args.duration) for n in names}
+        ins = {n: bench_ins_scenario(n, args.seed, args.duration, args.ins_white) for n in names}
         ins_summary(ins)
     if args.ins_only:
         print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
