@@ -52,7 +52,9 @@ fixes.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+import io
 import math
 import time
 
@@ -744,6 +746,41 @@ def bench_ins_scenario(name: str, seed: int, duration_s: float, white: bool = Fa
     return rows
 
 
+def ins_mode_summary(results: dict[str, list[dict]], k: int) -> dict:
+    """INS mode ``k`` of :data:`INS_MODES` over the scenarios of ``results``: its figures, and
+    whether it meets each goal that applies to it."""
+    label, mode, _ = INS_MODES[k]
+    rs = [results[n][k] for n in results]
+    ratios = [r["rp_bad"] / r["rp_clean"] for r in rs]
+    det = sum(r["det"].detected for r in rs)
+    miss = sum(r["det"].missed for r in rs)
+    fa = sum(r["det"].false_alarms for r in rs)
+    swfa = sum(r["sw"].false_alarms for r in rs)
+    recs = [r["long"].recovery_fixes for r in rs]
+    diverged = any(r["long"].diverged for r in rs)
+    out = dict(
+        label=label,
+        ratios=ratios,
+        rate=det / max(det + miss, 1),
+        fa=fa,
+        swfa=swfa,
+        cut=1.0 - fa / swfa if swfa else float("nan"),
+        fa0=sum(r["clean_fa"] for r in rs),
+        swfa0=sum(r["sw_clean_fa"] for r in rs),
+        recs=recs,
+        rec_ok=not diverged and all(x is not None and x <= GOAL_RECOVERY_FIXES for x in recs),
+    )
+    if mode == "plain":
+        out["ratio_ok"] = min(ratios) >= GOAL_PLAIN_RP_RATIO
+    else:
+        out["ratio_ok"] = max(ratios) <= GOAL_ROBUST_RP_RATIO
+    out["all_ok"] = out["ratio_ok"] and (mode == "plain" or out["rec_ok"])
+    if label == "fuzzy":
+        fuzzy_ok = out["rate"] >= GOAL_FUZZY_DETECTION and out["cut"] >= GOAL_FUZZY_FA_CUT
+        out["all_ok"] = out["all_ok"] and fuzzy_ok
+    return out
+
+
 def ins_summary(results: dict[str, list[dict]]) -> None:
     names = list(results)
     print("\n=== INS, all scenarios (goals as for the CS + gravity filter) ===")
@@ -752,36 +789,54 @@ def ins_summary(results: dict[str, list[dict]]) -> None:
         f"{'detection':>10s} {'FA':>6s} {'SW4 FA':>7s} {'FA/SW4, clean':>14s} {'100 s: recovery':>16s}   goal"
     )
     for k, (label, mode, _) in enumerate(INS_MODES):
-        rs = [results[n][k] for n in names]
-        ratios = [r["rp_bad"] / r["rp_clean"] for r in rs]
-        det = sum(r["det"].detected for r in rs)
-        miss = sum(r["det"].missed for r in rs)
-        fa = sum(r["det"].false_alarms for r in rs)
-        swfa = sum(r["sw"].false_alarms for r in rs)
-        fa0, swfa0 = sum(r["clean_fa"] for r in rs), sum(r["sw_clean_fa"] for r in rs)
-        recs = [r["long"].recovery_fixes for r in rs]
-        diverged = any(r["long"].diverged for r in rs)
-        rec_ok = not diverged and all(x is not None and x <= GOAL_RECOVERY_FIXES for x in recs)
+        sm = ins_mode_summary(results, k)
+        ratios, rate, cut, recs = sm["ratios"], sm["rate"], sm["cut"], sm["recs"]
+        fa, swfa, fa0, swfa0 = sm["fa"], sm["swfa"], sm["fa0"], sm["swfa0"]
         if mode == "plain":
-            goal = f"ratio >= {GOAL_PLAIN_RP_RATIO:.1f}x: {_goal(min(ratios) >= GOAL_PLAIN_RP_RATIO)}"
+            goal = f"ratio >= {GOAL_PLAIN_RP_RATIO:.1f}x: {_goal(sm['ratio_ok'])}"
         else:
-            goal = f"ratio <= {GOAL_ROBUST_RP_RATIO:.2f}x: {_goal(max(ratios) <= GOAL_ROBUST_RP_RATIO)}"
+            goal = f"ratio <= {GOAL_ROBUST_RP_RATIO:.2f}x: {_goal(sm['ratio_ok'])}"
         if label == "fuzzy":
-            rate = det / max(det + miss, 1)
-            cut = 1.0 - fa / swfa if swfa else float("nan")
             goal += (
                 f"; detection {100.0 * rate:.1f}% (>= {100.0 * GOAL_FUZZY_DETECTION:.0f}%: "
                 f"{_goal(rate >= GOAL_FUZZY_DETECTION)}), FA {100.0 * cut:.0f}% fewer than SW4 "
                 f"(>= {100.0 * GOAL_FUZZY_FA_CUT:.0f}%: {_goal(cut >= GOAL_FUZZY_FA_CUT)})"
             )
         if mode != "plain":
-            goal += f"; no divergence, recovery <= {GOAL_RECOVERY_FIXES} fixes: {_goal(rec_ok)}"
+            goal += f"; no divergence, recovery <= {GOAL_RECOVERY_FIXES} fixes: {_goal(sm['rec_ok'])}"
         rec_txt = " ".join("-" if x is None else str(x) for x in recs)
         print(
-            f"{label:10s} {' '.join(f'{x:6.2f}' for x in ratios):>34s} "
-            f"{100.0 * det / max(det + miss, 1):9.1f}% "
+            f"{label:10s} {' '.join(f'{x:6.2f}' for x in ratios):>34s} {100.0 * rate:9.1f}% "
             f"{fa:6d} {swfa:7d} {f'{fa0} / {swfa0}':>14s} {rec_txt:>16s}   {goal}"
         )
+
+
+def ins_seeds(seeds: list[int], names: list[str], duration_s: float, white: bool) -> None:
+    """The INS runs of each seed (their per-scenario tables left out), then one line a seed for
+    the fuzzy detector and the plain filter against every goal. Only the summaries are kept: a
+    seed's runs are ~2 GB of outputs."""
+    k_plain = next(k for k, m in enumerate(INS_MODES) if m[0] == "plain")
+    k_fuzzy = next(k for k, m in enumerate(INS_MODES) if m[0] == "fuzzy")
+    lines = []
+    for seed in seeds:
+        with contextlib.redirect_stdout(io.StringIO()):
+            results = {n: bench_ins_scenario(n, seed, duration_s, white) for n in names}
+        print(f"\n--- seed {seed}")
+        ins_summary(results)
+        fz, pl = ins_mode_summary(results, k_fuzzy), ins_mode_summary(results, k_plain)
+        del results
+        rec_txt = " ".join("-" if x is None else str(x) for x in fz["recs"])
+        lines.append(
+            f"{seed:4d} {max(fz['ratios']):11.2f} {100.0 * fz['rate']:9.1f}% {fz['fa']:5d} {fz['swfa']:7d} "
+            f"{100.0 * fz['cut']:8.0f}% {rec_txt:>10s} {min(pl['ratios']):18.2f}   "
+            f"fuzzy {_goal(fz['all_ok'])}, plain >= {GOAL_PLAIN_RP_RATIO:.1f}x {_goal(pl['ratio_ok'])}"
+        )
+    print(f"\n=== INS, fuzzy detector, seeds {', '.join(map(str, seeds))} ===")
+    print(
+        f"{'seed':>4s} {'worst ratio':>11s} {'detection':>10s} {'FA':>5s} {'SW4 FA':>7s} {'below SW4':>9s} "
+        f"{'recovery':>10s} {'plain, least ratio':>18s}   every goal"
+    )
+    print("\n".join(lines))
 
 
 def _between(run: Run, a: float, b: float) -> np.ndarray:
@@ -806,6 +861,7 @@ def main() -> None:
     ap.add_argument(
         "--ins-white", action="store_true", help="INS without the receiver error model (accuracies as white)"
     )
+    ap.add_argument("--ins-seeds", help="INS only, these seeds (e.g. 1-8 or 1,3): a summary line a seed")
     args = ap.parse_args()
     global OWN_TEST
     OWN_TEST = args.own_test
@@ -821,6 +877,12 @@ def main() -> None:
         "SW4: 4-epoch sliding-window chi-square at 0.005.\n"
         f"Errors from the first fix + {SETTLE_S:.0f} s; roll/pitch RMS over both angles; pos/vel RMS 3-D."
     )
+    if args.ins_seeds:
+        lo, _, hi = args.ins_seeds.partition("-")
+        seeds = list(range(int(lo), int(hi) + 1)) if hi else [int(x) for x in args.ins_seeds.split(",")]
+        ins_seeds(seeds, names, args.duration, args.ins_white)
+        print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
+        return
     if not args.no_ins:
         ins = {n: bench_ins_scenario(n, args.seed, args.duration, args.ins_white) for n in names}
         ins_summary(ins)
