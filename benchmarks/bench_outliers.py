@@ -617,12 +617,16 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
         print(f"{rule:12s} {det.row()}   {goal}")
     print(f"{'SW4 (0.005)':12s} {sw.row()}   baseline")
 
-    print(f"\n100 s fault (recovered: 10 fixes in a row within {bound_m:.1f} m, plain clean p99 + 1 m):")
+    print(f"\n100 s fault (recovered: 10 fixes in a row within {bound_m:.1f} m, plain clean p99 + 1 m;")
+    print(" roll/pitch RMS in deg over the 10 s after it, the outlier-free run's in brackets):")
     print(
         f"{'mode':10s} {'max herr during':>15s} {'after':>10s} {'recovery':>10s} {'to 10 m':>9s} "
-        f"{'flagged in 30 s after':>22s}   goal"
+        f"{'flagged in 30 s after':>22s} {'roll/pitch 10 s after':>22s}   goal"
     )
+    t_end = faults.long_window_s[1]
     for r in rows:
+        rp_after = rms(r["run"].rp_err[_between(r["run"], t_end, t_end + 10.0)]) * deg
+        rp_after_clean = rms(r["clean"].rp_err[_between(r["clean"], t_end, t_end + 10.0)]) * deg
         lf = r["long"]
         rec_txt = f"{lf.recovery_fixes:d} fixes" if lf.recovery_fixes is not None else "never"
         rec10 = f"{lf.recovery_10m_fixes:d} fixes" if lf.recovery_10m_fixes is not None else "never"
@@ -630,7 +634,8 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
         goal = f"no divergence (< {DIVERGED_M:.0f} m), recovery <= {GOAL_RECOVERY_FIXES} fixes: {_goal(ok)}"
         print(
             f"{r['label']:10s} {_num(lf.max_err_during_m)} m {_num(lf.max_err_after_m)} m "
-            f"{rec_txt:>10s} {rec10:>9s} {lf.flagged_after:22d}   {goal}"
+            f"{rec_txt:>10s} {rec10:>9s} {lf.flagged_after:22d} "
+            f"{f'{rp_after:.2f} ({rp_after_clean:.2f})':>22s}   {goal}"
         )
     refused = [f"{r['label']} {r['refused']}" for r in rows if r["refused"]]
     if refused:
