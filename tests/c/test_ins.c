@@ -491,6 +491,75 @@ static void test_lockup_guards_reset_to_the_fix(void)
     CHECK_CLOSE(o.vel_ned_mps[0], v, 0.05);
 }
 
+/* The receiver error model (ALGORITHMS.md 10, GNSS update step 3) and the hold-outs (step 5) on a
+ * straight run: R is the white part and the rest of h_acc^2 its growth rate (the growth itself
+ * against its closed form: tests/python/test_ins.py), and a 6 s fault of both position (20 m) and
+ * velocity (2 m/s) is rejected from its second fix on with both blocks out, then the clean fixes
+ * are taken again. */
+static void test_receiver_model_and_hold_outs(void)
+{
+    mca_ins_config_t c;
+    flat_config(&c);
+    c.init_timeout_s = 0.5f;
+    c.robust.mode = MCA_ROBUST_FUZZY;
+    c.gps_pos_tau_s = 60.0f;
+    c.gps_pos_white_m = 0.3f;
+    c.gps_alt_white_m = 0.5f;
+    CHECK_EQ_INT(mca_ins_init(&g_ins, &c), MCA_OK);
+    const double lat0 = 30.5, lon0 = 114.3, h = 50.0, v = 10.0;
+    const double e2 = 6.69437999014e-3, a = 6378137.0, s = sin(lat0 * DEG_D);
+    const double rm = a * (1.0 - e2) / pow(1.0 - e2 * s * s, 1.5) + h;
+    const float w[3] = {0.0f, 0.0f, 0.0f}, f[3] = {0.0f, 0.0f, -G_TEST};
+    const float c2_h = 0.5f * 0.5f - 0.3f * 0.3f; /* make_fix: h_acc 0.5 m */
+    double t_out = -1.0; /* time of the first fix with both blocks out */
+    int faulty = 0, faulty_out = 0, late_rejected = 0, checked_r = 0;
+    for (int k = 1; k <= 400 * 40; ++k) {
+        const uint64_t t = (uint64_t)k * 2500u;
+        CHECK_EQ_INT(mca_ins_imu(&g_ins, t, w, f), MCA_OK);
+        if (k % 80 != 40) {
+            continue;
+        }
+        const uint64_t t_fix = t - 100000u;
+        const double ts = (double)t_fix * 1e-6;
+        const int fault = ts >= 20.0 && ts < 26.0;
+        const double north = v * ts + (fault ? 20.0 : 0.0);
+        const float vel[3] = {(float)v + (fault ? 2.0f : 0.0f), 0.0f, 0.0f};
+        mca_gps_fix_t fx = make_fix(t_fix, lat0 + north / rm / DEG_D, lon0, h, vel);
+        CHECK_EQ_INT(mca_ins_gps(&g_ins, &fx), MCA_OK);
+        mca_ins_output_t o;
+        mca_ins_output(&g_ins, &o);
+        if (g_ins.nav && !fault && ts > 5.0 && !checked_r) {
+            /* the rows' R is the white part; the rest of h_acc^2 drives the growth */
+            CHECK_CLOSE(g_ins.upd_r[0], 0.09f, 1e-6);
+            CHECK_CLOSE(g_ins.rx_q[0], 2.0f * c2_h / 60.0f, 1e-7);
+            checked_r = 1;
+        }
+        if (fault) {
+            ++faulty;
+            if (ts >= 20.1) {
+                const int out = (o.flags & MCA_INS_FLAG_REJECTED) != 0u && g_ins.vel_out && g_ins.pos_out;
+                faulty_out += out;
+                t_out = (out && t_out < 0.0) ? ts : t_out;
+            }
+        } else if (ts >= 27.0) {
+            late_rejected += (o.flags & MCA_INS_FLAG_REJECTED) != 0u;
+        }
+    }
+    CHECK(checked_r);
+    CHECK(faulty >= 29);
+    /* the first faulty fix is applied (the three-threshold rule lets one through); from the
+     * second on, which raises both alarms, both blocks are out */
+    CHECK(t_out > 20.1 && t_out < 20.3);
+    CHECK_EQ_INT(faulty_out, faulty - 1);
+    CHECK_EQ_INT(late_rejected, 0);
+    CHECK(state_finite(&g_ins));
+    CHECK(p_symmetric_psd_diag(&g_ins));
+    mca_ins_output_t o;
+    mca_ins_output(&g_ins, &o);
+    CHECK_CLOSE(o.pos_ned_m[0], v * 40.0, 1.0);
+    CHECK_CLOSE(o.vel_ned_mps[0], v, 0.05);
+}
+
 int main(void)
 {
     test_config();
@@ -501,5 +570,6 @@ int main(void)
     test_error_model_structure();
     test_bad_input_leaves_state_unchanged();
     test_lockup_guards_reset_to_the_fix();
+    test_receiver_model_and_hold_outs();
     TEST_MAIN_END();
 }
