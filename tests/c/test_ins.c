@@ -427,6 +427,37 @@ static void test_bad_input_leaves_state_unchanged(void)
     CHECK_EQ_INT(mca_ins_replay(NULL, NULL, 0u, NULL, 0u, NULL, 0u, NULL, NULL, NULL, NULL), MCA_ERR_NULL);
 }
 
+/* The straight and level run north at STRAIGHT_V m/s of the guard and hold-out tests: the flat
+ * configuration in fuzzy mode, the IMU samples, and the fix at t_fix_us on the track moved north_m
+ * north, with dv_mps more north velocity. */
+#define STRAIGHT_V 10.0
+static void straight_config(mca_ins_config_t *c)
+{
+    flat_config(c);
+    c->init_timeout_s = 0.5f;
+    c->robust.mode = MCA_ROBUST_FUZZY;
+}
+
+/* IMU sample k (400 Hz, still); 1 when a fix is due (5 Hz, 100 ms old), its time in *t_fix_us */
+static int straight_step(int k, uint64_t *t_fix_us)
+{
+    const float w[3] = {0.0f, 0.0f, 0.0f}, f[3] = {0.0f, 0.0f, -G_TEST};
+    const uint64_t t = (uint64_t)k * 2500u;
+    CHECK_EQ_INT(mca_ins_imu(&g_ins, t, w, f), MCA_OK);
+    *t_fix_us = t - 100000u;
+    return k % 80 == 40;
+}
+
+static mca_gps_fix_t straight_fix(uint64_t t_fix_us, double north_m, float dv_mps)
+{
+    const double lat0 = 30.5, lon0 = 114.3, h = 50.0;
+    const double e2 = 6.69437999014e-3, a = 6378137.0, s = sin(lat0 * DEG_D);
+    const double rm = a * (1.0 - e2) / pow(1.0 - e2 * s * s, 1.5) + h;
+    const double north = STRAIGHT_V * (double)t_fix_us * 1e-6 + north_m;
+    const float vel[3] = {(float)STRAIGHT_V + dv_mps, 0.0f, 0.0f};
+    return make_fix(t_fix_us, lat0 + north / rm / DEG_D, lon0, h, vel);
+}
+
 /* Lock-up guards (ALGORITHMS.md 10, GNSS update step 5), fuzzy mode, straight and level north at
  * 10 m/s: a position-only fault longer than gnss_block_reset_s (velocity fused) resets the
  * position to the fix; a position and velocity fault longer than gnss_reset_s (nothing fused)
@@ -434,31 +465,22 @@ static void test_bad_input_leaves_state_unchanged(void)
 static void test_lockup_guards_reset_to_the_fix(void)
 {
     mca_ins_config_t c;
-    flat_config(&c);
-    c.init_timeout_s = 0.5f;
-    c.robust.mode = MCA_ROBUST_FUZZY;
+    straight_config(&c);
     c.gnss_reset_s = 2.0f;
     c.gnss_block_reset_s = 4.0f;
     CHECK_EQ_INT(mca_ins_init(&g_ins, &c), MCA_OK);
-    const double lat0 = 30.5, lon0 = 114.3, h = 50.0, v = 10.0;
-    const double e2 = 6.69437999014e-3, a = 6378137.0, s = sin(lat0 * DEG_D);
-    const double rm = a * (1.0 - e2) / pow(1.0 - e2 * s * s, 1.5) + h;
-    const float w[3] = {0.0f, 0.0f, 0.0f}, f[3] = {0.0f, 0.0f, -G_TEST};
+    const double v = STRAIGHT_V;
     int resets_pos = 0, resets_both = 0, rejected = 0;
     for (int k = 1; k <= 400 * 40; ++k) {
-        const uint64_t t = (uint64_t)k * 2500u;
-        CHECK_EQ_INT(mca_ins_imu(&g_ins, t, w, f), MCA_OK);
-        if (k % 80 != 40) {
+        uint64_t t_fix;
+        if (!straight_step(k, &t_fix)) {
             continue;
         }
-        const uint64_t t_fix = t - 100000u;
         const double ts = (double)t_fix * 1e-6;
         /* 12-18 s: fix 30 m north (velocity good); 26-30 s: 30 m north and 3 m/s north */
         const int pos_fault = (ts >= 12.0 && ts < 18.0) || (ts >= 26.0 && ts < 30.0);
         const int vel_fault = ts >= 26.0 && ts < 30.0;
-        const double north = v * ts + (pos_fault ? 30.0 : 0.0);
-        const float vel[3] = {(float)v + (vel_fault ? 3.0f : 0.0f), 0.0f, 0.0f};
-        mca_gps_fix_t fx = make_fix(t_fix, lat0 + north / rm / DEG_D, lon0, h, vel);
+        mca_gps_fix_t fx = straight_fix(t_fix, pos_fault ? 30.0 : 0.0, vel_fault ? 3.0f : 0.0f);
         CHECK_EQ_INT(mca_ins_gps(&g_ins, &fx), MCA_OK);
         mca_ins_output_t o;
         mca_ins_output(&g_ins, &o);
@@ -499,32 +521,23 @@ static void test_lockup_guards_reset_to_the_fix(void)
 static void test_receiver_model_and_hold_outs(void)
 {
     mca_ins_config_t c;
-    flat_config(&c);
-    c.init_timeout_s = 0.5f;
-    c.robust.mode = MCA_ROBUST_FUZZY;
+    straight_config(&c);
     c.gps_pos_tau_s = 60.0f;
     c.gps_pos_white_m = 0.3f;
     c.gps_alt_white_m = 0.5f;
     CHECK_EQ_INT(mca_ins_init(&g_ins, &c), MCA_OK);
-    const double lat0 = 30.5, lon0 = 114.3, h = 50.0, v = 10.0;
-    const double e2 = 6.69437999014e-3, a = 6378137.0, s = sin(lat0 * DEG_D);
-    const double rm = a * (1.0 - e2) / pow(1.0 - e2 * s * s, 1.5) + h;
-    const float w[3] = {0.0f, 0.0f, 0.0f}, f[3] = {0.0f, 0.0f, -G_TEST};
+    const double v = STRAIGHT_V;
     const float c2_h = 0.5f * 0.5f - 0.3f * 0.3f; /* make_fix: h_acc 0.5 m */
     double t_out = -1.0; /* time of the first fix with both blocks out */
     int faulty = 0, faulty_out = 0, late_rejected = 0, checked_r = 0;
     for (int k = 1; k <= 400 * 40; ++k) {
-        const uint64_t t = (uint64_t)k * 2500u;
-        CHECK_EQ_INT(mca_ins_imu(&g_ins, t, w, f), MCA_OK);
-        if (k % 80 != 40) {
+        uint64_t t_fix;
+        if (!straight_step(k, &t_fix)) {
             continue;
         }
-        const uint64_t t_fix = t - 100000u;
         const double ts = (double)t_fix * 1e-6;
         const int fault = ts >= 20.0 && ts < 26.0;
-        const double north = v * ts + (fault ? 20.0 : 0.0);
-        const float vel[3] = {(float)v + (fault ? 2.0f : 0.0f), 0.0f, 0.0f};
-        mca_gps_fix_t fx = make_fix(t_fix, lat0 + north / rm / DEG_D, lon0, h, vel);
+        mca_gps_fix_t fx = straight_fix(t_fix, fault ? 20.0 : 0.0, fault ? 2.0f : 0.0f);
         CHECK_EQ_INT(mca_ins_gps(&g_ins, &fx), MCA_OK);
         mca_ins_output_t o;
         mca_ins_output(&g_ins, &o);
