@@ -12,7 +12,7 @@ Prints, never asserts:
 3. GNSS outliers: measured by benchmarks/bench_outliers.py, which runs its fault set through the
    INS too (``--ins-only``), per robust mode, with detections and false alarms;
 4. real recordings from ../shared/data when present (loaders of mcahrs.io.loaders; the INS with
-   EKF2's accuracy floors, mcahrs.evaluate.REAL_RECEIVER_FLOORS): the car
+   EKF2's accuracy floors and IMU noise, mcahrs.evaluate.REAL_INS): the car
    (RTK fixes, no attitude reference: INS drift against the withheld RTK fixes in outages, the
    two filters' roll/pitch against each other and against the levelled static start),
    comma2k19 (reference pose) and the PX4 ULog (EKF2 attitude as reference);
@@ -36,7 +36,7 @@ import numpy as np
 import pymap3d
 
 from mcahrs import core
-from mcahrs.evaluate import REAL_RECEIVER_FLOORS
+from mcahrs.evaluate import REAL_INS
 from mcahrs.samples import Recording
 from mcahrs.sim import quat_to_euler, scenario
 
@@ -215,7 +215,7 @@ def _fix_ned(rec: Recording, home: tuple[float, float, float]) -> np.ndarray:
 def bench_real_one(label: str, rec: Recording, preset: str, ins_over: dict, outages: tuple[int, ...]) -> None:
     t = (rec.imu["t_us"].astype(np.int64) - int(rec.imu["t_us"][0])) * 1e-6
     dur = t[-1]
-    ins = core.ins_replay(rec, core.ins_config(preset, **ins_over, **REAL_RECEIVER_FLOORS))
+    ins = core.ins_replay(rec, core.ins_config(preset, **ins_over, **REAL_INS))
     nav = core.replay(rec, core.nav_config(preset))
     mi, mn = ins_valid(ins), nav_valid(nav)
     print(
@@ -258,7 +258,7 @@ def bench_real_one(label: str, rec: Recording, preset: str, ins_over: dict, outa
             continue
         b = a + length
         cut = without_fixes(rec, [(a, b)])
-        o_ins = core.ins_replay(cut, core.ins_config(preset, **ins_over, **REAL_RECEIVER_FLOORS))
+        o_ins = core.ins_replay(cut, core.ins_config(preset, **ins_over, **REAL_INS))
         o_nav = core.replay(cut, core.nav_config(preset))
         tf = (rec.gnss["t_us"].astype(np.int64) - int(rec.imu["t_us"][0])) * 1e-6
         inside = (tf >= a) & (tf < b)
@@ -333,7 +333,7 @@ def bench_real() -> None:
         f = rec.imu["accel_mps2"][still].mean(axis=0)
         lev = np.degrees([math.atan2(-f[1], -f[2]), math.atan2(f[0], math.hypot(f[1], f[2]))])
         ins = core.ins_replay(
-            rec, core.ins_config("ground", lever_arm_b_m=[0.0, -0.05, 0.0], **REAL_RECEIVER_FLOORS)
+            rec, core.ins_config("ground", lever_arm_b_m=[0.0, -0.05, 0.0], **REAL_INS)
         )
         nav = core.replay(rec, core.nav_config("ground"))
         k = np.searchsorted(t, 15.0)

@@ -519,6 +519,37 @@ def test_real_receiver_floors_keep_the_robust_mode_on_real_fixes() -> None:
     assert d.max() < 0.05
 
 
+ULOG61 = CAR.parent / "ulog" / "log_61_2024-2-6-16-27-02.ulg"
+
+
+def test_real_imu_noise_keeps_the_robust_mode_on_the_px4_log() -> None:
+    """The INS defaults' IMU noise is a datasheet's with margin; a multirotor's IMU also sees
+    vibration and errors at 100 deg/s. With it (and EKF2's receiver floors) the INS on the PX4 log
+    is over-confident: its GNSS T is 16 in the median and the fuzzy detector rejects most real
+    fixes. With EKF2's IMU noise as well (mcahrs.evaluate.REAL_INS) T is 3 and it rejects none."""
+    if not ULOG61.exists():
+        pytest.skip(f"shared data not present: {ULOG61}")
+    from mcahrs.evaluate import REAL_INS, REAL_RECEIVER_FLOORS
+    from mcahrs.io.loaders import load
+
+    rec = load(ULOG61)
+    t_med, rejected = {}, {}
+    for name, over in (("floors", REAL_RECEIVER_FLOORS), ("ekf2", REAL_INS)):
+        for mode in ("plain", "fuzzy"):
+            out = core.ins_replay(rec, core.ins_config("multirotor", robust=mode, **over))
+            rows = _fix_rows(out, rec)
+            flags = out["flags"][rows]
+            nav = (flags & core.INS_FLAG_BITS["nav"]) != 0
+            if mode == "plain":
+                t_med[name] = float(np.nanmedian(out["gps_t"][rows][nav]))
+            else:
+                rejected[name] = float(np.mean((flags[nav] & core.INS_FLAG_BITS["rejected"]) != 0))
+    print(f"PX4 log_61: plain GNSS T median {t_med}, fuzzy rejected {rejected}")
+    assert t_med["floors"] > 10.0 and t_med["ekf2"] < 6.0  # 16.2 / 3.0 measured, 5-6 rows a fix
+    assert rejected["floors"] > 0.4  # 61 % measured
+    assert rejected["ekf2"] < 0.02  # 0 measured
+
+
 # ------------------------------------------------------------------ bad input through the wrapper
 
 
