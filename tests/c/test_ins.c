@@ -458,6 +458,18 @@ static mca_gps_fix_t straight_fix(uint64_t t_fix_us, double north_m, float dv_mp
     return make_fix(t_fix_us, lat0 + north / rm / DEG_D, lon0, h, vel);
 }
 
+/* At the end of the 40 s run: the state finite, P symmetric with a non-negative diagonal, and
+ * the INS on the track. */
+static void straight_back_on_track(void)
+{
+    CHECK(state_finite(&g_ins));
+    CHECK(p_symmetric_psd_diag(&g_ins));
+    mca_ins_output_t o;
+    mca_ins_output(&g_ins, &o);
+    CHECK_CLOSE(o.pos_ned_m[0], STRAIGHT_V * 40.0, 1.0);
+    CHECK_CLOSE(o.vel_ned_mps[0], STRAIGHT_V, 0.05);
+}
+
 /* Lock-up guards (ALGORITHMS.md 10, GNSS update step 5), fuzzy mode, straight and level north at
  * 10 m/s: a position-only fault longer than gnss_block_reset_s (velocity fused) resets the
  * position to the fix; a position and velocity fault longer than gnss_reset_s (nothing fused)
@@ -469,7 +481,6 @@ static void test_lockup_guards_reset_to_the_fix(void)
     c.gnss_reset_s = 2.0f;
     c.gnss_block_reset_s = 4.0f;
     CHECK_EQ_INT(mca_ins_init(&g_ins, &c), MCA_OK);
-    const double v = STRAIGHT_V;
     int resets_pos = 0, resets_both = 0, rejected = 0;
     for (int k = 1; k <= 400 * 40; ++k) {
         uint64_t t_fix;
@@ -497,20 +508,14 @@ static void test_lockup_guards_reset_to_the_fix(void)
             resets_pos += (ts >= 12.0 + 4.0 && ts < 12.0 + 4.5) ? 1 : 0;
             resets_both += (both && ts >= 26.0 + 2.0 && ts < 26.0 + 2.5) ? 1 : 0;
             if (both && ts < 30.0) {
-                CHECK_CLOSE(g_ins.vel_ned_mps[0], v + 3.0, 0.05); /* the velocity took the fix */
+                CHECK_CLOSE(g_ins.vel_ned_mps[0], STRAIGHT_V + 3.0, 0.05); /* the velocity took the fix */
             }
         }
     }
     CHECK_EQ_INT(resets_pos, 1);
     CHECK_EQ_INT(resets_both, 1);
     CHECK(rejected > 40);
-    CHECK(state_finite(&g_ins));
-    CHECK(p_symmetric_psd_diag(&g_ins));
-    /* 10 s after the last fault the INS is back on the track */
-    mca_ins_output_t o;
-    mca_ins_output(&g_ins, &o);
-    CHECK_CLOSE(o.pos_ned_m[0], v * 40.0, 1.0);
-    CHECK_CLOSE(o.vel_ned_mps[0], v, 0.05);
+    straight_back_on_track(); /* 10 s after the last fault */
 }
 
 /* The receiver error model (ALGORITHMS.md 10, GNSS update step 3) and the hold-outs (step 5) on a
@@ -526,7 +531,6 @@ static void test_receiver_model_and_hold_outs(void)
     c.gps_pos_white_m = 0.3f;
     c.gps_alt_white_m = 0.5f;
     CHECK_EQ_INT(mca_ins_init(&g_ins, &c), MCA_OK);
-    const double v = STRAIGHT_V;
     const float c2_h = 0.5f * 0.5f - 0.3f * 0.3f; /* make_fix: h_acc 0.5 m */
     double t_out = -1.0; /* time of the first fix with both blocks out */
     int faulty = 0, faulty_out = 0, late_rejected = 0, checked_r = 0;
@@ -565,12 +569,7 @@ static void test_receiver_model_and_hold_outs(void)
     CHECK(t_out > 20.1 && t_out < 20.3);
     CHECK_EQ_INT(faulty_out, faulty - 1);
     CHECK_EQ_INT(late_rejected, 0);
-    CHECK(state_finite(&g_ins));
-    CHECK(p_symmetric_psd_diag(&g_ins));
-    mca_ins_output_t o;
-    mca_ins_output(&g_ins, &o);
-    CHECK_CLOSE(o.pos_ned_m[0], v * 40.0, 1.0);
-    CHECK_CLOSE(o.vel_ned_mps[0], v, 0.05);
+    straight_back_on_track();
 }
 
 int main(void)
