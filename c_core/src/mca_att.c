@@ -5,6 +5,7 @@
 #include "mca_kf_rows.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 #define DEG 0.0174532925199433f
@@ -22,24 +23,18 @@ MCA_COLD void mca_att_config_default(mca_att_config_t *cfg)
     mca_robust_config_default(&cfg->robust);
 }
 
-static int nonneg(float v)
-{
-    return isfinite(v) && v >= 0.0f;
-}
-
-static int pos(float v)
-{
-    return isfinite(v) && v > 0.0f;
-}
-
 MCA_COLD mca_status_t mca_att_config_check(const mca_att_config_t *c)
 {
     if (c == NULL) {
         return MCA_ERR_NULL;
     }
-    if (!nonneg(c->gyro_noise_rps) || !nonneg(c->gyro_bias_rw_rps2) || !pos(c->att0_var_rad2) ||
-        !pos(c->yaw0_var_rad2) || !pos(c->bias0_var_rps2) || !pos(c->rp_sigma0_rad) || !nonneg(c->rp_k_dev) ||
-        !pos(c->max_tilt_obs_rad) || c->max_tilt_obs_rad >= 1.5707963f ||
+    /* noise densities and rp_k_dev >= 0, the rest > 0 */
+    static const uint16_t off[] = {
+        offsetof(mca_att_config_t, gyro_noise_rps), offsetof(mca_att_config_t, gyro_bias_rw_rps2),
+        offsetof(mca_att_config_t, att0_var_rad2),  offsetof(mca_att_config_t, yaw0_var_rad2),
+        offsetof(mca_att_config_t, bias0_var_rps2), offsetof(mca_att_config_t, rp_sigma0_rad),
+        offsetof(mca_att_config_t, rp_k_dev),       offsetof(mca_att_config_t, max_tilt_obs_rad)};
+    if (!mca_fields_ok(c, off, sizeof off / sizeof off[0], 0x43u) || c->max_tilt_obs_rad >= 1.5707963f ||
         mca_robust_config_check(&c->robust) != MCA_OK) {
         return MCA_ERR_BAD_CONFIG;
     }

@@ -3,6 +3,7 @@
 #include "mca_cold.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 #include "mca_cs_series.inc"
@@ -36,21 +37,20 @@ MCA_COLD void mca_cs_config_default_v(mca_cs_config_t *cfg)
     cfg->a_max_mps2 = 3.0f;
 }
 
-static int positive(float v)
-{
-    return isfinite(v) && v > 0.0f;
-}
-
 MCA_COLD mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
 {
     if (cfg == NULL) {
         return MCA_ERR_NULL;
     }
-    if (!positive(cfg->tau_a_s) || !positive(cfg->tau_p_s) || !positive(cfg->tau_v_s) ||
-        !isfinite(cfg->sigma_p_m) || cfg->sigma_p_m < 0.0f || !isfinite(cfg->sigma_v_mps) ||
-        cfg->sigma_v_mps < 0.0f || !positive(cfg->sigma_a0_mps2) || !positive(cfg->a_max_mps2) ||
-        !positive(cfg->sigma_a_min_mps2) || !positive(cfg->p0_var_m2) || !positive(cfg->v0_var_m2ps2) ||
-        !positive(cfg->a0_var_m2ps4) || !positive(cfg->dt_max_s) || cfg->adaptive > 1u ||
+    /* every float field > 0, but the Gauss-Markov error stds sigma_p, sigma_v >= 0 */
+    static const uint16_t off[] = {
+        offsetof(mca_cs_config_t, tau_a_s),       offsetof(mca_cs_config_t, tau_p_s),
+        offsetof(mca_cs_config_t, tau_v_s),       offsetof(mca_cs_config_t, sigma_p_m),
+        offsetof(mca_cs_config_t, sigma_v_mps),   offsetof(mca_cs_config_t, sigma_a0_mps2),
+        offsetof(mca_cs_config_t, a_max_mps2),    offsetof(mca_cs_config_t, sigma_a_min_mps2),
+        offsetof(mca_cs_config_t, p0_var_m2),     offsetof(mca_cs_config_t, v0_var_m2ps2),
+        offsetof(mca_cs_config_t, a0_var_m2ps4),  offsetof(mca_cs_config_t, dt_max_s)};
+    if (!mca_fields_ok(cfg, off, sizeof off / sizeof off[0], 0x18u) || cfg->adaptive > 1u ||
         mca_robust_config_check(&cfg->robust) != MCA_OK) {
         return MCA_ERR_BAD_CONFIG;
     }
@@ -365,7 +365,7 @@ static mca_status_t check_update(float z_p, float z_v, float r_p, float r_v, uin
     if (((mask & MCA_CS_POS) != 0u && !isfinite(z_p)) || ((mask & MCA_CS_VEL) != 0u && !isfinite(z_v))) {
         return MCA_ERR_NONFINITE;
     }
-    if (((mask & MCA_CS_POS) != 0u && !positive(r_p)) || ((mask & MCA_CS_VEL) != 0u && !positive(r_v))) {
+    if (((mask & MCA_CS_POS) != 0u && !mca_positive(r_p)) || ((mask & MCA_CS_VEL) != 0u && !mca_positive(r_v))) {
         return MCA_ERR_BAD_ARG;
     }
     return MCA_OK;

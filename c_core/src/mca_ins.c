@@ -90,16 +90,6 @@ MCA_COLD void mca_ins_config_multirotor(mca_ins_config_t *c)
     c->yaw_source = MCA_YAW_MAG; /* a multirotor does not move along its nose */
 }
 
-static int pos(float v)
-{
-    return isfinite(v) && v > 0.0f;
-}
-
-static int nonneg(float v)
-{
-    return isfinite(v) && v >= 0.0f;
-}
-
 /* a Gauss-Markov time: 0 (random walk) or >= 1 s */
 static int tau_ok(float v)
 {
@@ -111,21 +101,24 @@ MCA_COLD mca_status_t mca_ins_config_check(const mca_ins_config_t *c)
     if (c == NULL) {
         return MCA_ERR_NULL;
     }
-    int ok = nonneg(c->gyro_noise_rps) && nonneg(c->accel_noise_mps2) && nonneg(c->gyro_bias_rw_rps2) &&
-             nonneg(c->accel_bias_rw_mps3) && tau_ok(c->gyro_bias_tau_s) && tau_ok(c->accel_bias_tau_s) &&
-             pos(c->att0_var_rad2) && pos(c->yaw0_var_rad2) && isfinite(c->yaw0_rad) &&
-             pos(c->gyro_bias0_var_rps2) && pos(c->gyro_bias_still_var_rps2) && pos(c->att_still_var_rad2) && pos(c->accel_bias0_var_mps4) && pos(c->vel0_var_m2ps2) &&
-             nonneg(c->cov_dt_s) && c->cov_dt_s <= 0.1f && c->earth_rate <= 1u && c->transport_rate <= 1u &&
-             c->yaw_source <= MCA_YAW_COG && nonneg(c->gravity_mps2) && pos(c->imu_dt_max_s) &&
-             pos(c->init_still_s) && nonneg(c->init_gyro_still_rps) && nonneg(c->init_acc_still_mps2) &&
-             pos(c->init_timeout_s) && pos(c->accel_sat_mps2) && pos(c->gps_timeout_s) &&
-             pos(c->gps_pos_sigma_m) && pos(c->gps_alt_sigma_m) && pos(c->gps_vel_sigma_mps) &&
-             isfinite(c->mag_declination_rad) && pos(c->mag_yaw_sigma_rad) && nonneg(c->mag_period_s) &&
-             nonneg(c->cog_min_speed_mps) && pos(c->cog_sigma0_rad) && nonneg(c->gps_pos_noise_min_m) &&
-             nonneg(c->gps_vel_noise_min_mps) && nonneg(c->gnss_reset_s) &&
-             c->gnss_reset_s <= 600.0f && nonneg(c->gnss_block_reset_s) && c->gnss_block_reset_s <= 600.0f &&
-             tau_ok(c->gps_pos_tau_s) && c->gps_pos_tau_s <= 3600.0f && pos(c->gps_pos_white_m) &&
-             pos(c->gps_alt_white_m) && mca_robust_config_check(&c->robust) == MCA_OK;
+    int ok = mca_nonneg(c->gyro_noise_rps) && mca_nonneg(c->accel_noise_mps2) &&
+             mca_nonneg(c->gyro_bias_rw_rps2) && mca_nonneg(c->accel_bias_rw_mps3) && tau_ok(c->gyro_bias_tau_s) &&
+             tau_ok(c->accel_bias_tau_s) && mca_positive(c->att0_var_rad2) && mca_positive(c->yaw0_var_rad2) &&
+             isfinite(c->yaw0_rad) && mca_positive(c->gyro_bias0_var_rps2) &&
+             mca_positive(c->gyro_bias_still_var_rps2) && mca_positive(c->att_still_var_rad2) &&
+             mca_positive(c->accel_bias0_var_mps4) && mca_positive(c->vel0_var_m2ps2) && mca_nonneg(c->cov_dt_s) &&
+             c->cov_dt_s <= 0.1f && c->earth_rate <= 1u && c->transport_rate <= 1u && c->yaw_source <= MCA_YAW_COG &&
+             mca_nonneg(c->gravity_mps2) && mca_positive(c->imu_dt_max_s) && mca_positive(c->init_still_s) &&
+             mca_nonneg(c->init_gyro_still_rps) && mca_nonneg(c->init_acc_still_mps2) &&
+             mca_positive(c->init_timeout_s) && mca_positive(c->accel_sat_mps2) && mca_positive(c->gps_timeout_s) &&
+             mca_positive(c->gps_pos_sigma_m) && mca_positive(c->gps_alt_sigma_m) &&
+             mca_positive(c->gps_vel_sigma_mps) && isfinite(c->mag_declination_rad) &&
+             mca_positive(c->mag_yaw_sigma_rad) && mca_nonneg(c->mag_period_s) && mca_nonneg(c->cog_min_speed_mps) &&
+             mca_positive(c->cog_sigma0_rad) && mca_nonneg(c->gps_pos_noise_min_m) &&
+             mca_nonneg(c->gps_vel_noise_min_mps) && mca_nonneg(c->gnss_reset_s) && c->gnss_reset_s <= 600.0f &&
+             mca_nonneg(c->gnss_block_reset_s) && c->gnss_block_reset_s <= 600.0f && tau_ok(c->gps_pos_tau_s) &&
+             c->gps_pos_tau_s <= 3600.0f && mca_positive(c->gps_pos_white_m) && mca_positive(c->gps_alt_white_m) &&
+             mca_robust_config_check(&c->robust) == MCA_OK;
     /* durations become uint32 microseconds (ALGORITHMS.md 8, Times): keep them far below 71 min */
     ok = ok && c->imu_dt_max_s <= 10.0f && c->init_still_s <= 600.0f && c->init_timeout_s <= 600.0f &&
          c->gps_timeout_s <= 600.0f && c->mag_period_s <= 600.0f;

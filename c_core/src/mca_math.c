@@ -11,6 +11,35 @@ int mca_finite(float x)
     return isfinite(x) ? 1 : 0;
 }
 
+/* On the bits (one integer compare each, no FPU flags): a positive finite float is 0x00000001
+ * (the smallest denormal) to 0x7f7fffff (FLT_MAX); -0 (0x80000000) is >= 0 as well. */
+int mca_positive(float x)
+{
+    uint32_t u;
+    memcpy(&u, &x, sizeof u);
+    return u - 1u < 0x7f7fffffu;
+}
+
+int mca_nonneg(float x)
+{
+    uint32_t u;
+    memcpy(&u, &x, sizeof u);
+    return u <= 0x7f7fffffu || u == 0x80000000u;
+}
+
+int mca_fields_ok(const void *s, const uint16_t *off, size_t n, uint32_t nonneg)
+{
+    const unsigned char *b = (const unsigned char *)s;
+    for (size_t k = 0; k < n; ++k) {
+        float v;
+        memcpy(&v, b + off[k], sizeof v);
+        if (!(((nonneg >> k) & 1u) != 0u ? mca_nonneg(v) : mca_positive(v))) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
 int mca_all_finite(const float *v, size_t n)
 {
     /* v - v is +0 for a finite v and NaN for an infinite or NaN one, so the sums stay +0

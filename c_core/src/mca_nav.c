@@ -4,6 +4,7 @@
 #include "mca_cold.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 #define DEG 0.0174532925199433f
@@ -82,16 +83,6 @@ static float span_s(uint64_t a, uint64_t b)
     return (float)(d > (uint64_t)UINT32_MAX ? UINT32_MAX : (uint32_t)d) * 1e-6f;
 }
 
-static int pos(float v)
-{
-    return isfinite(v) && v > 0.0f;
-}
-
-static int nonneg(float v)
-{
-    return isfinite(v) && v >= 0.0f;
-}
-
 MCA_COLD mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
 {
     if (c == NULL) {
@@ -103,14 +94,21 @@ MCA_COLD mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
     }
     /* the pairing delay plus one entry must fit in the history ring */
     const float hist_s = (float)(MCA_HIST_LEN - 1) * (float)MCA_HIST_DT_US * 1e-6f;
-    if (c->comp_mode > MCA_COMP_VELDIFF || c->yaw_source > MCA_YAW_COG || !nonneg(c->cs_lag_s) ||
-        c->cs_lag_s > hist_s || !pos(c->gps_timeout_s) || !pos(c->grav_period_s) ||
-        !nonneg(c->nogps_rp_var_rad2) || c->nogps_centripetal > 1u || !nonneg(c->gravity_mps2) || !pos(c->imu_dt_max_s) ||
-        !pos(c->init_still_s) || !nonneg(c->init_gyro_still_rps) || !nonneg(c->init_acc_still_mps2) ||
-        !pos(c->init_timeout_s) || !pos(c->accel_sat_mps2) || !pos(c->gps_pos_sigma_m) ||
-        !pos(c->gps_alt_sigma_m) || !pos(c->gps_vel_sigma_mps) || !isfinite(c->mag_declination_rad) ||
-        !pos(c->mag_yaw_sigma_rad) || !nonneg(c->cog_min_speed_mps) || !pos(c->cog_sigma0_rad) ||
-        c->gps_test_imu > 1u || !nonneg(c->imu_acc_sigma_mps2)) {
+    /* the float fields: bit k of nonneg set, field k >= 0; else > 0; all finite */
+    static const uint16_t off[] = {
+        offsetof(mca_nav_config_t, cs_lag_s),          offsetof(mca_nav_config_t, gps_timeout_s),
+        offsetof(mca_nav_config_t, grav_period_s),     offsetof(mca_nav_config_t, nogps_rp_var_rad2),
+        offsetof(mca_nav_config_t, gravity_mps2),      offsetof(mca_nav_config_t, imu_dt_max_s),
+        offsetof(mca_nav_config_t, init_still_s),      offsetof(mca_nav_config_t, init_gyro_still_rps),
+        offsetof(mca_nav_config_t, init_acc_still_mps2), offsetof(mca_nav_config_t, init_timeout_s),
+        offsetof(mca_nav_config_t, accel_sat_mps2),    offsetof(mca_nav_config_t, gps_pos_sigma_m),
+        offsetof(mca_nav_config_t, gps_alt_sigma_m),   offsetof(mca_nav_config_t, gps_vel_sigma_mps),
+        offsetof(mca_nav_config_t, mag_yaw_sigma_rad), offsetof(mca_nav_config_t, cog_min_speed_mps),
+        offsetof(mca_nav_config_t, cog_sigma0_rad),    offsetof(mca_nav_config_t, imu_acc_sigma_mps2)};
+    const uint32_t nonneg = 0x1u | 0x8u | 0x10u | 0x80u | 0x100u | 0x8000u | 0x20000u;
+    if (c->comp_mode > MCA_COMP_VELDIFF || c->yaw_source > MCA_YAW_COG || c->cs_lag_s > hist_s ||
+        !mca_fields_ok(c, off, sizeof off / sizeof off[0], nonneg) || c->nogps_centripetal > 1u ||
+        !isfinite(c->mag_declination_rad) || c->gps_test_imu > 1u) {
         return MCA_ERR_BAD_CONFIG;
     }
     return MCA_OK;

@@ -1,8 +1,11 @@
-/* Host tests of mca_math: Cholesky, quaternions, Euler round trips, the float copy. */
+/* Host tests of mca_math: Cholesky, quaternions, Euler round trips, the float copy, range checks. */
 #include <string.h>
 
 #include "mca_test.h"
 #include "mcahrs/mca_math.h"
+
+#include <stddef.h>
+#include <stdint.h>
 
 static void test_cholesky(void)
 {
@@ -123,8 +126,43 @@ static void test_euler_part(void)
     }
 }
 
+/* mca_positive / mca_nonneg on the bits against the compares they replace (finite and > 0 /
+ * >= 0), over the edge values; mca_fields_ok reads the offsets it is given, with the nonneg
+ * mask bit by bit. */
+typedef struct {
+    uint8_t pad;
+    float a, b, c;
+} range_fields_t;
+
+static void test_range_checks(void)
+{
+    const float inf = INFINITY, nan = NAN;
+    const float v[] = {0.0f, -0.0f, 1e-45f, -1e-45f, 1.17549435e-38f, 1.0f, -1.0f, 3.40282347e38f,
+                       -3.40282347e38f, inf, -inf, nan, -nan};
+    for (size_t i = 0; i < sizeof v / sizeof v[0]; ++i) {
+        CHECK_EQ_INT(mca_positive(v[i]), isfinite(v[i]) && v[i] > 0.0f);
+        CHECK_EQ_INT(mca_nonneg(v[i]), isfinite(v[i]) && v[i] >= 0.0f);
+    }
+    const range_fields_t ok = {0u, 1.0f, 0.0f, 2.0f};
+    range_fields_t r = ok;
+    const uint16_t off[] = {(uint16_t)offsetof(range_fields_t, a), (uint16_t)offsetof(range_fields_t, b),
+                            (uint16_t)offsetof(range_fields_t, c)};
+    CHECK(!mca_fields_ok(&r, off, 3u, 0x0u)); /* b = 0 is not > 0 */
+    CHECK(!mca_fields_ok(&r, off, 3u, 0x5u)); /* a, c may be 0, b still not */
+    CHECK(mca_fields_ok(&r, off, 3u, 0x2u));
+    CHECK(mca_fields_ok(&r, off, 3u, 0x7u));
+    r.c = NAN;
+    CHECK(!mca_fields_ok(&r, off, 3u, 0x7u));
+    CHECK(mca_fields_ok(&r, off, 2u, 0x2u)); /* c is not read */
+    r = ok;
+    r.c = -0.0f; /* >= 0, not > 0 */
+    CHECK(mca_fields_ok(&r, off, 3u, 0x6u));
+    CHECK(!mca_fields_ok(&r, off, 3u, 0x2u));
+}
+
 int main(void)
 {
+    test_range_checks();
     test_cholesky();
     test_quat();
     test_copyf();

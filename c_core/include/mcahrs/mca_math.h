@@ -33,6 +33,19 @@ typedef enum {
 /** 1 when x is neither NaN nor infinite. Cost: a compare. */
 int mca_finite(float x);
 
+/** 1 when x is finite and > 0 (NaN and infinities fail). Cost: two compares. */
+int mca_positive(float x);
+
+/** 1 when x is finite and >= 0. Cost: two compares. */
+int mca_nonneg(float x);
+
+/**
+ * Range check of the float fields of a configuration struct s at the byte offsets off[0..n)
+ * (n <= 32): field k must be finite and >= 0 when bit k of nonneg is set, finite and > 0
+ * otherwise. 1 when every field passes. Cost: n loads and integer compares.
+ */
+int mca_fields_ok(const void *s, const uint16_t *off, size_t n, uint32_t nonneg);
+
 /** 1 when all n values are finite. Cost: 2n float operations and one compare (~4n instructions on the M4F). */
 int mca_all_finite(const float *v, size_t n);
 
