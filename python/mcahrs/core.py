@@ -162,8 +162,11 @@ class Cs3:
         self._rep = ffi.new("mca_update_report_t[3]")
         cfg_h = cfg_h if cfg_h is not None else cs_config(False)
         cfg_v = cfg_v if cfg_v is not None else cs_config(True)
-        p = ffi.NULL if pos_ned_m is None else _fptr(_as_f32(pos_ned_m, (3,), "pos_ned_m"))
-        v = ffi.NULL if vel_ned_mps is None else _fptr(_as_f32(vel_ned_mps, (3,), "vel_ned_mps"))
+        # the arrays stay referenced until the call returns (a pointer alone does not keep them)
+        pa = None if pos_ned_m is None else _as_f32(pos_ned_m, (3,), "pos_ned_m")
+        va = None if vel_ned_mps is None else _as_f32(vel_ned_mps, (3,), "vel_ned_mps")
+        p = ffi.NULL if pa is None else _fptr(pa)
+        v = ffi.NULL if va is None else _fptr(va)
         check(lib.mca_cs3_init(self._cs, cfg_h, cfg_v, p, v), "mca_cs3_init")
 
     def predict(self, t_s: float) -> None:
