@@ -25,6 +25,7 @@ MCA_COLD void mca_cs_config_default_h(mca_cs_config_t *cfg)
     cfg->a0_var_m2ps4 = 1.0f;
     cfg->dt_max_s = 10.0f;
     cfg->adaptive = 0u; /* docs/ALGORITHMS.md 2, note on the default */
+    cfg->coast = 0u;
     mca_robust_config_default(&cfg->robust);
 }
 
@@ -50,7 +51,7 @@ MCA_COLD mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
         offsetof(mca_cs_config_t, a_max_mps2),    offsetof(mca_cs_config_t, sigma_a_min_mps2),
         offsetof(mca_cs_config_t, p0_var_m2),     offsetof(mca_cs_config_t, v0_var_m2ps2),
         offsetof(mca_cs_config_t, a0_var_m2ps4),  offsetof(mca_cs_config_t, dt_max_s)};
-    if (!mca_fields_ok(cfg, off, sizeof off / sizeof off[0], 0x18u) || cfg->adaptive > 1u ||
+    if (!mca_fields_ok(cfg, off, sizeof off / sizeof off[0], 0x18u) || cfg->adaptive > 1u || cfg->coast > 1u ||
         mca_robust_config_check(&cfg->robust) != MCA_OK) {
         return MCA_ERR_BAD_CONFIG;
     }
@@ -278,18 +279,24 @@ static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float 
     if (inc != NULL) {
         axis_aid(ax, t, phi, q1, inc); /* from the posterior, before it is predicted */
     }
+    /* coasting (ALGORITHMS.md 2): after an update that left a row out, p and v follow the IMU
+     * increments instead of the acceleration state, and P takes the IMU's error variance va */
+    const int coast = inc != NULL && ax->cfg.coast != 0u && ax->aid.out != 0u;
     /* mean: eq. 17, Phi1 = constant acceleration + Gauss-Markov decay of eps */
     const float a = ax->x[2];
-    ax->x[0] += t * ax->x[1] + 0.5f * t * t * a;
-    ax->x[1] += t * a;
+    const float dp = coast ? inc->dp_m : 0.5f * t * t * a, dv = coast ? inc->dv_mps : t * a;
+    const float va = coast ? inc->acc_var_m2ps4 : 0.0f;
+    ax->x[0] += t * ax->x[1] + dp;
+    ax->x[1] += dv;
     ax->x[3] *= phi[18];
     ax->x[4] *= phi[24];
     /* covariance: Phi P Phi^T + Q on the upper triangle, D = diag(exp(-beta T), exp(-gamma T)):
      * [[A3 P33 A3^T, A3 P3e D], [., D Pee D]] */
     float *p = ax->p;
     const float eb = phi[18], eg = phi[24];
-    a3_rows(p, t, phi[2], phi[7], phi[12]);
-    a3_cols(p, t, phi[2], phi[7], phi[12]);
+    const float f13 = coast ? 0.0f : phi[2], f23 = coast ? 0.0f : phi[7];
+    a3_rows(p, t, f13, f23, phi[12]);
+    a3_cols(p, t, f13, f23, phi[12]);
     for (size_t i = 0; i < 3u; ++i) {
         p[5u * i + 3u] *= eb;
         p[5u * i + 4u] *= eg;
@@ -306,6 +313,10 @@ static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float 
     }
     p[18] += qs * q1[18];
     p[24] += qs * q1[24];
+    const float t2 = t * t; /* coasting; + 0 otherwise (P's diagonal and P_pv are never -0) */
+    p[0] += va * 0.25f * t2 * t2;
+    p[1] += va * 0.5f * t2 * t;
+    p[6] += va * t2;
     /* the upper triangle mirrored: P exactly symmetric (the update reads rows of it) */
     for (size_t i = 1; i < 5u; ++i) {
         for (size_t j = 0; j < i; ++j) {
@@ -426,6 +437,7 @@ MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float
                                              aided ? nu_t : NULL, aided ? c_t : NULL, ws, MCA_CS_WS_LEN, rep);
     if (su == MCA_OK) {
         ax->aid.valid = 0u;
+        ax->aid.out = (uint8_t)mca_robust_left_out(&ax->rs, m); /* coasting, ALGORITHMS.md 2 */
     }
     return su;
 }
@@ -577,6 +589,7 @@ MCA_NOINLINE static int axis_update_shared(mca_cs_axis_t *ax, const float p_post
     ax->rs.t_stat = t_stat;
     ax->rs.detected = 0u;
     ax->aid.valid = 0u;
+    ax->aid.out = 0u;
     return 1;
 }
 

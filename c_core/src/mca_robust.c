@@ -37,7 +37,7 @@ mca_status_t mca_robust_config_check(const mca_robust_config_t *c)
         return MCA_ERR_NULL;
     }
     /* akf_q_min > 0 also makes the AKF "tiny" of eq. 19 irrelevant (see akf_q_scale). */
-    if (c->mode > (uint8_t)MCA_ROBUST_IGG3 || c->fuzzy_reject > 1u || c->akf_window < 1u ||
+    if (c->mode > (uint8_t)MCA_ROBUST_IGG3 || c->fuzzy_reject > 2u || c->akf_window < 1u ||
         c->akf_window > MCA_AKF_WINDOW || !(c->akf_forget > 0.0f && c->akf_forget <= 1.0f) ||
         !(c->akf_q_min > 0.0f) || !(c->akf_q_max >= c->akf_q_min) || !(c->igg_k0 > 0.0f) ||
         !(c->igg_k1 > c->igg_k0) || !mca_finite(c->akf_q_max) || !mca_finite(c->igg_k1)) {
@@ -50,6 +50,15 @@ void mca_robust_state_init(mca_robust_state_t *st)
 {
     memset(st, 0, sizeof(*st));
     st->q_scale = 1.0f;
+}
+
+int mca_robust_left_out(const mca_robust_state_t *rs, size_t m)
+{
+    int out = rs->n_reject > 0u;
+    for (size_t i = 0; i < m && i < MCA_MEAS_MAX; ++i) {
+        out |= rs->n_removed[i] > 0u;
+    }
+    return out;
 }
 
 float mca_chi2_quantile(size_t m, mca_chi2_level_t level)
@@ -216,7 +225,7 @@ static void plan_fta(mca_plan_t *pl, size_t m, float t_stat)
 /* Fuzzy three-threshold detector (paper 001). Memberships of T as ALGORITHMS.md 5 writes
  * them; where two pieces meet (T = TD1, TD2, TD3) both give the same value. */
 static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_robust_state_t *rs, size_t m,
-                       float t_stat)
+                       float t_stat, const float *nu, const float *c)
 {
     const float td1 = mca_chi2_quantile(m, MCA_CHI2_2P5E2);
     const float td2 = mca_chi2_quantile(m, MCA_CHI2_5E3);
@@ -250,7 +259,19 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
     pl->alarm = alarm;
     pl->detected = alarm;
     if (alarm != 0u) {
-        if (rc->fuzzy_reject != 0u) {
+        if (rc->fuzzy_reject == 2u) {
+            /* rows (ALGORITHMS.md 5): out go the rows whose own standardised test residual fails
+             * chi2_1(0.005) and, while any does, the rows out on the last update; none or every
+             * row failing rejects the whole update */
+            const float k2 = mca_chi2_quantile(1u, MCA_CHI2_5E3);
+            unsigned out = 0u, was = 0u;
+            for (size_t j = 0; j < m; ++j) {
+                out |= (unsigned)(nu[j] * nu[j] > k2 * c[j * m + j]) << j;
+                was |= (unsigned)(rs->n_reject > 0u || rs->n_removed[j] > 0u) << j;
+            }
+            pl->keep &= ~(out != 0u ? out | was : pl->keep);
+            pl->rejected = pl->keep == 0u;
+        } else if (rc->fuzzy_reject != 0u) {
             pl->rejected = 1;
         } else {
             const float g = t_stat / td2;
@@ -1009,7 +1030,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
         plan_akf(&pl, rc, rs, n, m, h, kk, r, y, nu_m, t_stat, d);
         break;
     case MCA_ROBUST_FUZZY:
-        plan_fuzzy(&pl, rc, rs, m, t_stat);
+        plan_fuzzy(&pl, rc, rs, m, t_stat, nu_m, c_m);
         break;
     case MCA_ROBUST_IGG3:
         plan_igg(&pl, rc, m, r, nu_m, c_m, d, rep != NULL ? rep->w : NULL);

@@ -140,11 +140,59 @@ static void test_shared_ne_update_same_bits(void)
     CHECK(memcmp(a.axis[0].p, a.axis[1].p, sizeof(a.axis[0].p)) != 0);
 }
 
+/* Coasting (ALGORITHMS.md 2): after an update that left a row out, an aided predict moves p and
+ * v with the IMU increments (a kept) and adds the IMU error to P; with coast off, or without
+ * increments, the predict is the ordinary one bit for bit. */
+static void test_coasting_predict(void)
+{
+    mca_cs_config_t h;
+    mca_cs_config_default_h(&h);
+    h.coast = 1u;
+    CHECK_EQ_INT(mca_cs_config_check(&h), MCA_OK);
+    h.coast = 2u;
+    CHECK_EQ_INT(mca_cs_config_check(&h), MCA_ERR_BAD_CONFIG);
+    h.coast = 1u;
+    mca_cs_axis_t ax, plain;
+    CHECK_EQ_INT(mca_cs_axis_init(&ax, &h, 10.0f, 5.0f), MCA_OK);
+    ax.x[2] = 2.0f; /* an acceleration the coast must not use */
+    plain = ax;
+    const mca_cs_inc_t inc = {0.03f, 0.2f, 0.09f};
+    const float t = 0.2f;
+    /* out clear: the ordinary predict */
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&ax, t, &inc), MCA_OK);
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&plain, t, &inc), MCA_OK);
+    CHECK(memcmp(ax.x, plain.x, sizeof ax.x) == 0 && memcmp(ax.p, plain.p, sizeof ax.p) == 0);
+    CHECK_CLOSE(ax.x[1], 5.0 + 0.2 * 2.0, 1e-6);
+    /* out set: coasting */
+    mca_cs_axis_t before = ax;
+    ax.aid.out = 1u;
+    plain = ax;
+    plain.cfg.coast = 0u;
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&ax, t, &inc), MCA_OK);
+    CHECK_CLOSE(ax.x[0], before.x[0] + t * before.x[1] + 0.03f, 1e-5);
+    CHECK_CLOSE(ax.x[1], before.x[1] + 0.2f, 1e-6);
+    CHECK(ax.x[2] == before.x[2]);
+    CHECK(ax.p[1] == ax.p[5]);
+    /* coast off: the ordinary predict although out is set */
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&plain, t, &inc), MCA_OK);
+    CHECK_CLOSE(plain.x[1], before.x[1] + t * before.x[2], 1e-6);
+    /* P: without the a coupling, with the IMU error; the p-a covariance is not moved by a */
+    CHECK(ax.p[6] >= before.p[6] + 0.09f * t * t - 1e-7f);
+    CHECK(ax.p[6] < plain.p[6]); /* P_aa t^2 is larger than qa t^2 here */
+    /* without increments: the ordinary predict */
+    mca_cs_axis_t noinc = before, ref = before;
+    noinc.aid.out = 1u;
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&noinc, t, NULL), MCA_OK);
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&ref, t, NULL), MCA_OK);
+    CHECK(memcmp(noinc.x, ref.x, sizeof ref.x) == 0 && memcmp(noinc.p, ref.p, sizeof ref.p) == 0);
+}
+
 int main(void)
 {
     test_shared_ne_update_same_bits();
     test_bad_input_leaves_state();
     test_series_switch_continuous();
     test_long_run_stays_spd();
+    test_coasting_predict();
     TEST_MAIN_END();
 }

@@ -947,6 +947,69 @@ static void test_plain_gains_and_test_stat(void)
     CHECK_EQ_INT(mca_kf_test_stat(NULL, c_t, 1, g_ws, &t), MCA_ERR_NULL);
 }
 
+/* Fuzzy rows (fuzzy_reject 2, ALGORITHMS.md 5) on two independent rows (H = I, P = I,
+ * R = 0.1 I): while alarmed the failing row is left out and the other applied; a row out on the
+ * last update stays out while another fails; every row failing, or none (only the joint test),
+ * rejects. One row (m = 1) failing rejects. */
+static void test_fuzzy_rows_leave_out_the_failing_row(void)
+{
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_FUZZY);
+    rc.fuzzy_reject = 2u;
+    CHECK_EQ_INT(mca_robust_config_check(&rc), MCA_OK);
+    rc.fuzzy_reject = 3u;
+    CHECK_EQ_INT(mca_robust_config_check(&rc), MCA_ERR_BAD_CONFIG);
+    rc.fuzzy_reject = 2u;
+    mca_robust_state_t rs;
+    mca_robust_state_init(&rs);
+    mca_update_report_t rep;
+    const float h[4] = {1.0f, 0.0f, 0.0f, 1.0f}, r[4] = {0.1f, 0.0f, 0.0f, 0.1f};
+    /* z, then: alarm, rejected, x[0] / x[1] moved, rows left out after the update */
+    const struct {
+        float z0, z1;
+        int alarm, rejected, moved0, moved1, out0, out1;
+    } steps[] = {
+        {100.0f, 0.1f, 0, 0, 1, 1, 0, 0}, /* D = 1: no alarm yet, plain */
+        {100.0f, 0.1f, 1, 0, 0, 1, 1, 0}, /* alarm: row 0 out, row 1 applied */
+        {100.0f, 50.0f, 1, 1, 0, 0, 1, 1}, /* both fail: rejected */
+        {100.0f, 0.1f, 1, 1, 0, 0, 1, 1}, /* row 1 passes but was out while row 0 fails */
+    };
+    for (size_t k = 0; k < sizeof steps / sizeof steps[0]; ++k) {
+        float x[2] = {0.0f, 0.0f}, p[4];
+        eye(p, 2, 1.0f);
+        const float z[2] = {steps[k].z0, steps[k].z1};
+        CHECK_EQ_INT(mca_kf_update(x, p, 2, h, z, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
+        CHECK_EQ_INT(rep.alarm, steps[k].alarm);
+        CHECK_EQ_INT(rep.rejected, steps[k].rejected);
+        CHECK_EQ_INT(x[0] != 0.0f, steps[k].moved0);
+        CHECK_EQ_INT(x[1] != 0.0f, steps[k].moved1);
+        CHECK_EQ_INT(p[0] < 1.0f, steps[k].moved0); /* a row left out leaves its variance */
+        CHECK_EQ_INT(rs.n_removed[0] > 0u || rs.n_reject > 0u, steps[k].out0);
+        CHECK_EQ_INT(rs.n_removed[1] > 0u || rs.n_reject > 0u, steps[k].out1);
+        CHECK_EQ_INT(mca_robust_left_out(&rs, 2u), steps[k].out0 || steps[k].out1);
+        CHECK(rep.w[0] == 1.0f && rep.w[1] == 1.0f);
+    }
+    /* alarmed, nothing fails alone but the joint T: rejected (both rows at 2.5 sigma alone) */
+    mca_robust_state_init(&rs);
+    rs.alarm = 1u;
+    rs.d_k = 1.9f;
+    float x[2] = {0.0f, 0.0f}, p[4];
+    eye(p, 2, 1.0f);
+    const float zj[2] = {2.6f, 2.6f}; /* each 2.48 sigma (< 2.81), T = 12.3 > TD2 = 10.6 */
+    CHECK_EQ_INT(mca_kf_update(x, p, 2, h, zj, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
+    CHECK_EQ_INT(rep.alarm, 1);
+    CHECK_EQ_INT(rep.rejected, 1);
+    CHECK(x[0] == 0.0f && x[1] == 0.0f);
+    /* m = 1, alarmed and failing: rejected */
+    float fuzzy_x, fuzzy_p;
+    mca_robust_state_init(&rs);
+    fuzzy_step(&rc, &rs, 200.0, &rep, &fuzzy_x, &fuzzy_p);
+    fuzzy_step(&rc, &rs, 200.0, &rep, &fuzzy_x, &fuzzy_p);
+    CHECK_EQ_INT(rep.alarm, 1);
+    CHECK_EQ_INT(rep.rejected, 1);
+    CHECK(fuzzy_x == 0.0f && fuzzy_p == 1.0f);
+}
+
 int main(void)
 {
     test_chi2_table_matches_closed_form();
@@ -961,5 +1024,6 @@ int main(void)
     test_row_by_row_equals_joint_update();
     test_plain_test_statistic_small_m();
     test_plain_gains_and_test_stat();
+    test_fuzzy_rows_leave_out_the_failing_row();
     TEST_MAIN_END();
 }

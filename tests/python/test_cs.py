@@ -418,3 +418,83 @@ def test_imu_aided_prior_and_its_t_match_golden() -> None:
     print(f"aided prior C vs golden: y {worst_y:.2e} sd, S {worst_s:.2e}, T {worst_t:.2e}")
     # float32 state a few hundred metres from the origin, one predict's rounding: 1e-4 of a sd
     assert worst_y <= 1e-4 and worst_s <= 1e-4 and worst_t <= 1e-3
+
+
+def _fuzzy_rows_track(seed: int) -> tuple[np.ndarray, ...]:
+    """A 1-D horizontal track at 5 Hz (0.2 s): a smooth maneuver, GPS position and velocity with
+    white noise, and the IMU's increments over each interval from the true acceleration plus a
+    0.05 m/s^2 bias. Faults (fix indices): a 30 m position fault over 100..179 (velocity good),
+    a 25 m + 2 m/s fault of both over 220..249, a 3 m/s velocity fault over 290..319."""
+    rng = np.random.default_rng(seed)
+    n, t = 400, 0.2
+    tt = np.arange(n + 1) * t
+    acc = 2.0 * np.sin(0.3 * tt) + 1.0 * np.sin(1.1 * tt)
+    vel = np.concatenate([[8.0], 8.0 + np.cumsum(0.5 * (acc[1:] + acc[:-1]) * t)])
+    pos = np.concatenate([[0.0], np.cumsum(0.5 * (vel[1:] + vel[:-1]) * t)])
+    dv = 0.5 * (acc[1:] + acc[:-1]) * t + 0.05 * t
+    dp = (acc[:-1] / 3.0 + acc[1:] / 6.0) * t * t + 0.025 * t * t
+    zp = pos[1:] + rng.normal(0.0, 1.0, n)
+    zv = vel[1:] + rng.normal(0.0, 0.1, n)
+    zp[100:180] += 30.0
+    zp[220:250] += 25.0
+    zv[220:250] += 2.0
+    zv[290:320] += 3.0
+    return zp, zv, dp, dv, pos[1:], vel[1:]
+
+
+def test_fuzzy_rows_and_coasting_match_golden() -> None:
+    """A CS axis with fuzzy rows (fuzzy_reject 2) and coasting (ALGORITHMS.md 2 and 5), C against
+    the golden model composed of its independent pieces (aided_prior, robust_update with the test
+    innovation, predict_coasting after an update that left a row out), step by step through a
+    position fault, a fault of both and a velocity fault: the same decisions on every fix, and
+    x, P within float32 rounding of the golden ones.
+
+    It also checks what the pieces are for: the position fault is ridden out on the velocity
+    (position left out, velocity applied, the track within a few metres), and so is the fault of
+    both on the IMU; every fault fix is left out or rejected."""
+    from mcahrs.golden.robust import RobustConfig, RobustState, robust_update
+
+    zp, zv, dp, dv, p_true, v_true = _fuzzy_rows_track(5)
+    t, rp, rv, qa = 0.2, 1.0, 0.01, 0.09
+    robust = {"mode": core.lib.MCA_ROBUST_FUZZY, "fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}
+    cfg = core.cs_config(False, coast=1, robust=robust)
+    c = core.Cs3(cfg, core.cs_config(True), [0.0, 0.0, 0.0], [8.0, 0.0, 0.0])
+    g = gcs.CsAxis(gcs.CsAxisConfig.horizontal())
+    g.init(0.0, 8.0)
+    gcfg = RobustConfig("fuzzy", fuzzy_reject=2, reject_reset_n=100, row_reset_n=0)
+    gst = RobustState()
+    g_out = False
+    worst_x = worst_p = 0.0
+    left_out = np.zeros(len(zp), bool)
+    rejected = np.zeros(len(zp), bool)
+    herr = np.zeros(len(zp))
+    nan3 = np.array([qa, np.nan, np.nan])
+    for k in range(len(zp)):
+        c.predict_aided(t, [dp[k], 0.0, 0.0], [dv[k], 0.0, 0.0], nan3)
+        y, s = g.aided_prior(t, dp[k], dv[k], qa)  # from the posterior, before the predict
+        if g_out:
+            g.predict_coasting(t, dp[k], dv[k], qa)
+        else:
+            g.predict(t)
+        rep = c.update([zp[k], 0.0, 0.0], [zv[k], 0.0, 0.0], [rp, 4.0, 4.0], [rv, 1.0, 1.0], [3, 1, 1])
+        H = np.array([[1.0, 0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 0.0, 1.0]])
+        z = np.array([zp[k], zv[k]])
+        R = np.diag([rp, rv])
+        g.x, g.P, grep = robust_update(g.x, g.P, H, z, R, gcfg, gst, test=(z - y, s + R))
+        g_out = bool(grep.rejected) or any(v > 0 for v in gst.n_removed[:2])
+        assert bool(rep["rejected"][0]) == bool(grep.rejected), k
+        assert bool(rep["alarm"][0]) == bool(grep.alarm), k
+        assert bool(rep["left_out"][0]) == g_out, k
+        left_out[k], rejected[k] = g_out, bool(grep.rejected)
+        sd = np.sqrt(np.diag(g.P))
+        worst_x = max(worst_x, float(np.max(np.abs(c.x[0] - g.x) / sd)))
+        worst_p = max(worst_p, float(np.max(np.abs(c.P[0] - g.P) / np.outer(sd, sd))))
+        herr[k] = abs(float(c.x[0][0]) - p_true[k])
+    print(f"fuzzy rows + coasting, C vs golden: x {worst_x:.1e} sd, P {worst_p:.1e}")
+    print(f"max |p error|: position fault {herr[100:180].max():.2f} m, both {herr[220:250].max():.2f} m")
+    assert worst_x <= 1e-3 and worst_p <= 1e-3
+    assert left_out[100:180].all() and left_out[220:250].all() and left_out[290:320].all()
+    # one row out (the other applied) through the single-block faults, both out through the other
+    assert not rejected[101:180].any() and not rejected[291:320].any() and rejected[221:250].all()
+    assert not left_out[:100].any()  # nothing wrong, nothing left out
+    assert herr[100:180].max() < 5.0 and herr[220:250].max() < 5.0

@@ -96,6 +96,7 @@ CONFIGS: dict[str, dict[str, object]] = {
     "fuzzy_inflate": {"mode": "fuzzy", "fuzzy_reject": False},
     "igg3": {"mode": "igg3"},
     "igg3_k": {"mode": "igg3", "igg_k0": 1.0, "igg_k1": 2.5},
+    "fuzzy_rows": {"mode": "fuzzy", "fuzzy_reject": 2},  # last: the others keep their seeds
 }
 SIZES = [(n, m) for n in (5, 6, 15) for m in (1, 2, 6)]
 STEPS = 300
@@ -129,7 +130,7 @@ def _golden_cfg(spec: dict[str, object]) -> object:
 def _c_cfg(spec: dict[str, object]) -> object:
     kw = {k: v for k, v in spec.items() if k != "mode"}
     if "fuzzy_reject" in kw:
-        kw["fuzzy_reject"] = int(bool(kw["fuzzy_reject"]))
+        kw["fuzzy_reject"] = int(kw["fuzzy_reject"])  # True / False / 2 (rows)
     return core.robust_config(str(spec["mode"]), **kw)
 
 
@@ -339,7 +340,7 @@ def test_c_and_golden_sequences_exercise_the_mode(name: str) -> None:
     n, m = 6, 2
     gcfg, ccfg = _golden_cfg(spec), _c_cfg(spec)
     gstate, cstate = gr.RobustState(), core.RobustFilterState()
-    counts = {"detected": 0, "rejected": 0, "alarm": 0, "q_not_1": 0, "w_mid": 0}
+    counts = {"detected": 0, "rejected": 0, "alarm": 0, "q_not_1": 0, "w_mid": 0, "rows_out": 0}
     x = np.zeros(n)
     p = np.eye(n)
     for k in range(200):
@@ -349,6 +350,8 @@ def test_c_and_golden_sequences_exercise_the_mode(name: str) -> None:
         z = rng.standard_normal(m) * sig
         if k % 20 in (10, 11, 12):
             z += 50.0 * sig
+        elif k % 20 in (15, 16, 17):  # a burst on one row (fuzzy rows leave it out alone)
+            z[1] += 50.0 * sig[1]
         elif k % 7 == 3:
             z[0] += 2.2 * sig[0]
         z = _f32(z)
@@ -359,6 +362,7 @@ def test_c_and_golden_sequences_exercise_the_mode(name: str) -> None:
         counts["alarm"] += bool(rc["alarm"])
         counts["q_not_1"] += rc["q_scale"] != 1.0
         counts["w_mid"] += bool(np.any((rc["w"] > 0) & (rc["w"] < 1)))
+        counts["rows_out"] += bool(rc["alarm"]) and not rc["rejected"] and any(gstate.n_removed[:m])
         assert bool(rc["detected"]) == bool(rg.detected)
         assert bool(rc["rejected"]) == bool(rg.rejected)
     mode = spec["mode"]
@@ -369,6 +373,7 @@ def test_c_and_golden_sequences_exercise_the_mode(name: str) -> None:
     if mode == "fuzzy":
         assert counts["alarm"] > 5, counts
         assert (counts["rejected"] > 5) == bool(spec.get("fuzzy_reject", True)), counts
+        assert (counts["rows_out"] > 5) == (spec.get("fuzzy_reject") == 2), counts  # one row out, one in
     if mode == "igg3":
         assert counts["w_mid"] > 5, counts
 

@@ -40,6 +40,8 @@ typedef struct {
     float a0_var_m2ps4;     /**< initial acceleration variance, > 0 */
     float dt_max_s;         /**< longest accepted predict step, > 0 */
     uint8_t adaptive;       /**< 0 fixed sigma_a0, 1 current-statistical adaptive */
+    uint8_t coast;          /**< 1: after an update that left a row out (robust modes), an IMU-aided
+                                 predict moves p and v with the IMU increments (coasting) */
     mca_robust_config_t robust; /**< robust/adaptive mode of the GPS updates */
 } mca_cs_config_t;
 
@@ -54,6 +56,9 @@ typedef struct {
     float s[MCA_CS_NZ * MCA_CS_NZ];  /**< its covariance without R, row-major */
     uint8_t valid;                   /**< set by an aided predict, cleared by any other predict and by
                                           the update that uses it */
+    uint8_t out;                     /**< the last update left a row out (rejected, or a row removed:
+                                          mca_robust_left_out); with cfg.coast the next aided predict
+                                          coasts */
 } mca_cs_aid_t;
 
 /** IMU increments over one predict interval, for mca_cs_axis_predict_aided. */
@@ -114,6 +119,9 @@ mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t_s);
  * v + dv + e_g eps_v], s = G P G^T + diag(sigma_p^2 (1 - e_b^2), sigma_v^2 (1 - e_g^2)) +
  * acc_var [[t^4/4, t^3/2], [t^3/2, t^2]], G = [[1, t, 0, e_b, 0], [0, 1, 0, 0, e_g]],
  * e_b = exp(-beta t), e_g = exp(-gamma t). inc NULL: mca_cs_axis_predict.
+ * With cfg.coast and aid.out set (the last update left a row out) the predict coasts
+ * (docs/ALGORITHMS.md 2, coasting): p += v t + dp, v += dv, a kept, the covariance without the
+ * p-a and v-a couplings plus acc_var [[t^4/4, t^3/2], [t^3/2, t^2]] on (p, v).
  * Cost: the predict plus ~40 multiply-adds (e_b, e_g and the Gauss-Markov Q come from the
  * predict's own transition).
  * @return MCA_ERR_BAD_DT, MCA_ERR_NONFINITE (inc not finite), MCA_ERR_BAD_ARG (acc_var < 0), MCA_OK;

@@ -35,7 +35,7 @@ typedef enum {
 /** Robust-mode configuration of one filter's updates. mca_robust_config_default fills it. */
 typedef struct {
     uint8_t mode;          /**< mca_robust_mode_t */
-    uint8_t fuzzy_reject;  /**< fuzzy alarm: 1 reject the update, 0 inflate it */
+    uint8_t fuzzy_reject;  /**< fuzzy alarm: 1 reject the update, 0 inflate it, 2 leave out the failing rows */
     uint8_t akf_window;    /**< AKF window length, 1..MCA_AKF_WINDOW */
     uint8_t reject_reset_n; /**< lock-up guard: the n-th rejection in a row updates plain instead (0: off) */
     uint8_t row_reset_n;    /**< row lock-up guard: a row removed n times in a row, the same (0: off) */
@@ -76,7 +76,9 @@ typedef struct {
     float c[MCA_MEAS_MAX * MCA_MEAS_MAX];       /**< innovation covariance, m x m, row stride m */
     float t_stat;                               /**< nu^T C^-1 nu */
     float factor;                               /**< covariance inflation applied (1 = none) */
-    float w[MCA_MEAS_MAX];                      /**< IGG-III weights per row (1 = full) */
+    float w[MCA_MEAS_MAX];                      /**< IGG-III weights per row (1 = full; fuzzy rows
+                                                     report 1: the memory's n_removed says which
+                                                     rows were left out) */
     float q_scale;                              /**< AKF Q factor after this update */
     uint8_t detected;                           /**< the mode's test flagged an outlier */
     uint8_t rejected;                           /**< the update was not applied (x, P unchanged) */
@@ -95,7 +97,7 @@ typedef struct {
 void mca_robust_config_default(mca_robust_config_t *cfg);
 
 /**
- * Range check of every field (mode known, fuzzy_reject 0/1, akf_window 1..MCA_AKF_WINDOW,
+ * Range check of every field (mode known, fuzzy_reject 0..2, akf_window 1..MCA_AKF_WINDOW,
  * akf_forget in (0, 1], 0 < akf_q_min <= akf_q_max finite, 0 < igg_k0 < igg_k1 finite).
  * Cost: ~15 compares. Reads only cfg.
  * @return MCA_ERR_NULL (cfg NULL), MCA_ERR_BAD_CONFIG when a field is out of range, else MCA_OK.
@@ -110,6 +112,13 @@ mca_status_t mca_robust_config_check(const mca_robust_config_t *cfg);
  * would otherwise keep scaling Q after a switch to another mode.
  */
 void mca_robust_state_init(mca_robust_state_t *st);
+
+/**
+ * 1 when the last update made with this memory left a row out: it was rejected, or one of its
+ * m rows was removed (IGG-III weight 0, fuzzy rows). A lock-up guard's plain update leaves none
+ * out. Cost: m + 1 compares. Reads only st (not NULL).
+ */
+int mca_robust_left_out(const mca_robust_state_t *st, size_t m);
 
 /**
  * Upper-a quantile of chi-square with m degrees of freedom, chi2_m(a) =

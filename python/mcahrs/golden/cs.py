@@ -282,6 +282,7 @@ class CsAxisConfig:
     v0_var_m2s2: float = 1.0  # initial variance of v
     a0_var_m2s4: float = 1.0  # initial variance of a
     dt_max_s: float = 10.0  # longest accepted predict step
+    coast: bool = False  # coast on the IMU after an update that left a row out (predict_coasting)
 
     @classmethod
     def horizontal(cls) -> CsAxisConfig:
@@ -306,11 +307,12 @@ class CsAxisConfig:
         return 1.0 / self.tau_v_s
 
     def validate(self) -> None:
-        """Raise BadConfigError unless every value is finite and > 0, adaptive 0/1/bool."""
-        if self.adaptive not in (0, 1):  # True/False compare equal to 1/0
-            raise BadConfigError(f"adaptive must be 0 or 1, got {self.adaptive!r}")
+        """Raise BadConfigError unless every value is finite and > 0, adaptive and coast 0/1/bool."""
+        for flag in ("adaptive", "coast"):
+            if getattr(self, flag) not in (0, 1):  # True/False compare equal to 1/0
+                raise BadConfigError(f"{flag} must be 0 or 1, got {getattr(self, flag)!r}")
         for f in fields(self):
-            if f.name == "adaptive":
+            if f.name in ("adaptive", "coast"):
                 continue
             v = getattr(self, f.name)
             if not isinstance(v, (int, float, np.floating, np.integer)) or isinstance(v, bool):
@@ -428,6 +430,32 @@ class CsAxis:
         S += np.diag([c.sigma_p_m**2 * (1.0 - eb * eb), c.sigma_v_mps**2 * (1.0 - eg * eg)])
         S += acc_var * np.array([[T**4 / 4.0, T**3 / 2.0], [T**3 / 2.0, T**2]])
         return y, S
+
+    def predict_coasting(self, T: float, dp: float, dv: float, acc_var: float) -> float:
+        """Coasting predict over T (ALGORITHMS.md 2, coasting): p and v move with the IMU's
+        increments ``dp`` (position, less the initial velocity's share) and ``dv`` instead of
+        the acceleration state, whose mean stays; the covariance propagates with the CS
+        transition less its p-a and v-a couplings, and gains the IMU error ``acc_var`` held
+        over the interval: acc_var [[T^4/4, T^3/2], [T^3/2, T^2]] on (p, v). The process noise
+        Q is the CS filter's own. Returns s2, as :meth:`predict`.
+        """
+        self._require_init()
+        t = _check_dt(T, self.cfg.dt_max_s)
+        c = self.cfg
+        s2 = maneuver_variance(self.x[2], c)
+        x = cs_mean_transition(c.beta, c.gamma, t) @ self.x
+        x[0] = self.x[0] + t * self.x[1] + dp
+        x[1] = self.x[1] + dv
+        phi = cs_transition(c.alpha, c.beta, c.gamma, t)
+        phi[0, 2] = phi[1, 2] = 0.0  # the IMU, not a, moves p and v
+        Q = cs_process_noise(c.alpha, c.beta, c.gamma, t, s2, c.sigma_p_m, c.sigma_v_mps)
+        Q[:2, :2] += acc_var * np.array([[t**4 / 4.0, t**3 / 2.0], [t**3 / 2.0, t**2]])
+        P = phi @ self.P @ phi.T + Q
+        P = 0.5 * (P + P.T)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            raise NonFiniteError("predict produced a non-finite state")
+        self.x, self.P, self.s2 = x, P, s2
+        return s2
 
     def predict(self, T: float) -> float:
         """Predict over T seconds. Returns the maneuver variance s2 used (also self.s2).

@@ -221,7 +221,7 @@ def config_from_c(cfg_dict: dict[str, Any]) -> InsConfig:
         if f.name == "robust":
             kw["robust"] = RobustConfig(
                 mode=MODES[int(v["mode"])],
-                fuzzy_reject=bool(v["fuzzy_reject"]),
+                fuzzy_reject=int(v["fuzzy_reject"]),
                 akf_window=int(v["akf_window"]),
                 akf_forget=float(v["akf_forget"]),
                 akf_q_min=float(v["akf_q_min"]),

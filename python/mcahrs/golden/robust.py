@@ -169,6 +169,7 @@ AKF_ALPHA = 1e-2  # ALGORITHMS.md 5: significance level of the AKF detection
 FUZZY_TD1_ALPHA = 0.025  # paper 001: TD1 = chi2_m(0.025), "no outlier" below it
 FUZZY_TD2_ALPHA = 0.005  # paper 001: TD2 = chi2_m(0.005), the usual single threshold
 FUZZY_TD3_OVER_TD2 = 10.0  # paper 001: TD3 = 10 TD2, "outlier" above it
+FUZZY_ROWS = 2  # fuzzy_reject value of the rows variant (ALGORITHMS.md 5)
 
 
 @dataclass
@@ -176,14 +177,15 @@ class RobustConfig:
     """Run-time choice of the update mode and its parameters (``mca_robust_config_t``).
 
     mode: one of ``MODES``; fuzzy_reject: while the fuzzy detector alarms, reject the update
-    (True) or inflate it as FTA with ``gamma = max(1, T / TD2)`` (False); akf_window: n, the
+    (True or 1), inflate it as FTA with ``gamma = max(1, T / TD2)`` (False or 0), or (2, rows)
+    leave out the rows that fail their own test (ALGORITHMS.md 5); akf_window: n, the
     number of epochs of eq. 18; akf_forget: b, the forgetting factor of the AKF row
     statistics; akf_q_min / akf_q_max: clamp of the Q scale of eq. 19; igg_k0 / igg_k1: the
     IGG-III thresholds on the standardised residual.
     """
 
     mode: str = "plain"
-    fuzzy_reject: bool = True
+    fuzzy_reject: int = True  # 0 / False inflate, 1 / True reject, 2 rows
     akf_window: int = 8
     akf_forget: float = 0.2
     akf_q_min: float = 0.5
@@ -202,8 +204,8 @@ class RobustConfig:
         """
         if self.mode not in MODES:
             raise BadConfigError(f"mode must be one of {MODES}, got {self.mode!r}")
-        if self.fuzzy_reject not in (0, 1):  # True/False compare equal to 1/0
-            raise BadConfigError(f"fuzzy_reject must be a bool, got {self.fuzzy_reject!r}")
+        if self.fuzzy_reject not in (0, 1, FUZZY_ROWS):  # True/False compare equal to 1/0
+            raise BadConfigError(f"fuzzy_reject must be a bool or 2 (rows), got {self.fuzzy_reject!r}")
         n = self.akf_window
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise BadConfigError(f"akf_window must be an integer >= 1, got {n!r}")
@@ -581,6 +583,7 @@ class _Outcome:
     detected: bool = False
     rejected: bool = False
     alarm: bool = False
+    left_out: tuple[bool, ...] | None = None  # rows the update did not use, if not those with w == 0
 
 
 _Result = tuple[np.ndarray, np.ndarray, _Outcome]
@@ -594,10 +597,11 @@ def _outcome(
     detected: bool = False,
     rejected: bool = False,
     alarm: bool = False,
+    left_out: tuple[bool, ...] | None = None,
 ) -> _Outcome:
     """The outcome of an m-row update; w defaults to all ones."""
     w = np.ones(m) if w is None else w
-    return _Outcome(w, float(factor), float(q_scale), bool(detected), bool(rejected), bool(alarm))
+    return _Outcome(w, float(factor), float(q_scale), bool(detected), bool(rejected), bool(alarm), left_out)
 
 
 def _update_plain(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
@@ -645,12 +649,36 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
     if not memory.alarm:
         x, P = _gain_update(step.x, step.P, step.H, step.nu, step.C, step.R)
         return x, P, _outcome(step.m)
+    if cfg.fuzzy_reject == FUZZY_ROWS:
+        return _fuzzy_rows(step, memory)
     if cfg.fuzzy_reject:
         return step.x, step.P, _outcome(step.m, detected=True, rejected=True, alarm=True)
     _, td2, _ = fuzzy_thresholds(step.m)
     gamma = max(1.0, step.T / td2)
     x, P = _gain_update(step.x, step.P, step.H, step.nu, gamma * step.C, step.R)
     return x, P, _outcome(step.m, factor=gamma, detected=True, alarm=True)
+
+
+def _fuzzy_rows(step: _Step, memory: RobustState) -> _Result:
+    """Fuzzy rows while alarmed (ALGORITHMS.md 5): a row fails when its own standardised test
+    residual, nu_t,i^2 / C_t,ii, exceeds chi2_1(0.005); while any row fails, the rows the last
+    update left out (it was rejected, or they were removed) stay out too. The other rows make a
+    section-1 update; no row or every row failing rejects the update. The report's w stays 1."""
+    m = step.m
+    k2 = chi2_quantile(FUZZY_TD2_ALPHA, 1)
+    fails = [float(step.nu_test[i]) ** 2 > k2 * float(step.C_test[i, i]) for i in range(m)]
+    if any(fails):
+        were_out = [memory.n_reject > 0 or memory.n_removed[i] > 0 for i in range(m)]
+        out = [f or w for f, w in zip(fails, were_out, strict=True)]
+    else:
+        out = [True] * m  # the joint test alone: nothing to single out
+    kept = [i for i in range(m) if not out[i]]
+    if not kept:
+        everything = (True,) * m
+        return step.x, step.P, _outcome(m, detected=True, rejected=True, alarm=True, left_out=everything)
+    H_k, R_k = step.H[kept], step.R[np.ix_(kept, kept)]
+    x, P = _gain_update(step.x, step.P, H_k, step.nu[kept], H_k @ step.P @ H_k.T + R_k, R_k)
+    return x, P, _outcome(step.m, detected=True, alarm=True, left_out=tuple(out))
 
 
 def _update_igg3(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
@@ -689,6 +717,8 @@ def _working_copy(state: RobustState) -> RobustState:
         d_k=float(state.d_k),
         alarm=bool(state.alarm),
         started=bool(state.started),
+        n_reject=int(state.n_reject),  # read by fuzzy rows; the guard below counts on from the caller's
+        n_removed=[int(v) for v in state.n_removed],
     )
     if not _memory_is_finite(memory):
         raise NonFiniteError("robust state is not finite")
@@ -761,7 +791,7 @@ def robust_update(
     # Lock-up guard (ALGORITHMS.md 5): the reject_reset_n-th rejection in a row, or the
     # row_reset_n-th removal in a row of one row, becomes a plain update with the nominal R and
     # the memory starts afresh.
-    removed = [bool(w == 0.0) for w in outcome.w]
+    removed = list(outcome.left_out) if outcome.left_out is not None else [bool(w == 0.0) for w in outcome.w]
     n_removed = [int(v) for v in state.n_removed]
     reset = bool(outcome.rejected) and 0 < cfg.reject_reset_n <= int(state.n_reject) + 1
     reset = reset or any(r and 0 < cfg.row_reset_n <= n_removed[i] + 1 for i, r in enumerate(removed))
