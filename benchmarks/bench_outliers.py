@@ -5,7 +5,8 @@ Run: PYTHONPATH=python python benchmarks/bench_outliers.py [--seed N] [--duratio
 
 Prints, never asserts. For each simulator scenario it injects GNSS faults the way the detection
 paper (001, section 3.2) tests them, and replays the clean and the faulty recording through the C
-filter (``core.replay``) in every mode: 0 plain, 1 FTA, 2 AKF, 3 fuzzy, 4 IGG-III, set on the
+filter (``core.replay``) in every mode: 0 plain, 1 FTA, 2 AKF, 3 fuzzy (reject, inflate, and
+rows: the CS axes coasting on the IMU while a row is out, see ``MODES``), 4 IGG-III, set on the
 three CS axes (``cs_h``, ``cs_v``) and on the attitude filter (``att``; ``--cs-only`` leaves the
 attitude filter plain). The CS updates' robust decisions test the GPS against the IMU-aided
 prediction (ALGORITHMS.md 8, GPS step 3, the default ``gps_test_imu = 1``); ``--own-test`` runs
@@ -73,6 +74,12 @@ SCENARIOS = {
     "car_accel_brake": "ground",
 }
 # (label, mca_robust_config_t.mode, other robust fields); fuzzy-infl: fuzzy_reject = 0.
+# fuzzy-rows: fuzzy_reject = 2 (the rows that fail their own test are left out, ALGORITHMS.md 5)
+# with the CS filters coasting on the IMU while a row is out (cs coast = 1, ALGORITHMS.md 2). Its
+# lock-up guard: 100 whole rejections in a row (20 s at 5 Hz: how long the CS filter coasts on an
+# IMU it has no bias estimate for), no row guard (a position left out while the velocity is
+# applied does not run open loop; the row guard would let the 100 s fault in after 10 s).
+ROWS = {"fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}
 MODES = (
     ("plain", 0, {}),
     ("FTA", 1, {}),
@@ -80,6 +87,7 @@ MODES = (
     ("fuzzy", 3, {}),
     ("fuzzy-infl", 3, {"fuzzy_reject": 0}),
     ("IGG-III", 4, {}),
+    ("fuzzy-rows", 3, ROWS),
 )
 IGG_K1 = 3.0  # mca_robust_config_t default igg_k1; the IGG-III detection proxy is T > k1^2
 
@@ -194,9 +202,13 @@ OWN_TEST = False  # --own-test: gps_test_imu = 0
 
 def nav_cfg(preset: str, mode: int, extra: dict, cs_only: bool) -> object:
     robust = {"robust": {"mode": mode, **extra}}
-    over = {"cs_h": robust, "cs_v": robust, "gps_test_imu": 0 if OWN_TEST else 1}
+    rows = extra.get("fuzzy_reject") == 2
+    cs = robust | ({"coast": 1} if rows else {})
+    over = {"cs_h": cs, "cs_v": cs, "gps_test_imu": 0 if OWN_TEST else 1}
     if not cs_only:
-        over["att"] = robust
+        # fuzzy rows is a CS-update variant: the attitude filter's one gravity observation (roll
+        # and pitch of one vector) takes the fuzzy default, reject
+        over["att"] = {"robust": {"mode": mode}} if rows else robust
     return core.nav_config(preset, **over)
 
 
