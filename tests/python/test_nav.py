@@ -458,7 +458,9 @@ def test_robust_modes_on_real_fixes_flag_nothing() -> None:
     """On the real recordings the CS filter's test is conservative (T 0.04-0.16 in the median on
     two rows, against 2 for a consistent filter): the fuzzy detector and FTA flag none of the
     car's RTK fixes or the comma2k19 drive's, and leave the attitude the plain filter's, bit for
-    bit. (IGG-III weighs rows on every fix and moves it: 0.7 deg on the car, 3.2 on comma2k19.)"""
+    bit; so does fuzzy rows with the CS axes coasting (bench_outliers' fuzzy-rows): no row is left
+    out, nothing coasts. (IGG-III weighs rows on every fix and moves it: 0.7 deg on the car, 3.2 on
+    comma2k19.)"""
     from pathlib import Path
 
     from mcahrs.io.loaders import load
@@ -469,6 +471,9 @@ def test_robust_modes_on_real_fixes_flag_nothing() -> None:
             pytest.skip(f"shared data not present: {path}")
         rec = load(path)
         base = core.replay(rec, core.nav_config("ground"))["euler_rad"]
+        rows = {"robust": {"mode": 3, "fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}, "coast": 1}
+        out = core.replay(rec, core.nav_config("ground", cs_h=rows, cs_v=rows, att={"robust": {"mode": 3}}))
+        np.testing.assert_array_equal(out["euler_rad"], base, err_msg=f"{path.name} fuzzy rows")
         for mode in (1, 3):
             robust = {"robust": {"mode": mode}}
             out = core.replay(rec, core.nav_config("ground", cs_h=robust, cs_v=robust, att=robust))
