@@ -481,3 +481,78 @@ def test_robust_modes_on_real_fixes_flag_nothing() -> None:
                 np.testing.assert_array_equal(out["euler_rad"], base, err_msg=f"{path.name} fuzzy")
             else:  # FTA inflates a gain only above chi2(1e-4): on the car once or twice
                 assert np.degrees(np.abs(out["euler_rad"][:, :2] - base[:, :2])).max() < 0.5, path.name
+
+
+def _with_gnss_fault(
+    rec: object, t0: float, t1: float, d_ne_m: tuple[float, float], dv_ne_mps: tuple[float, float]
+) -> tuple[object, np.ndarray]:
+    """A copy of rec with a constant horizontal offset on the fixes of [t0, t1) s: position by
+    d_ne_m (moved on the sphere, metres to 1e-7 deg), velocity by dv_ne_mps."""
+    import dataclasses
+
+    g = rec.gnss.copy()
+    t = g["t_us"] * 1e-6
+    sel = (t >= t0) & (t < t1)
+    lat = np.radians(g["lat_e7"][sel] * 1e-7)
+    r = 6378137.0
+    g["lat_e7"][sel] += np.round(np.degrees(d_ne_m[0] / r) * 1e7).astype(np.int32)
+    g["lon_e7"][sel] += np.round(np.degrees(d_ne_m[1] / (r * np.cos(lat))) * 1e7).astype(np.int32)
+    v = g["vel_ned_mps"].copy()
+    v[sel, 0] += dv_ne_mps[0]
+    v[sel, 1] += dv_ne_mps[1]
+    g["vel_ned_mps"] = v
+    return dataclasses.replace(rec, gnss=g), sel
+
+
+def test_fuzzy_rows_ride_out_a_position_fault_and_a_fault_of_both() -> None:
+    """Fuzzy rows with coasting CS axes (bench_outliers' fuzzy-rows; ALGORITHMS.md 2 coasting, 5
+    fuzzy rows), fixed-wing: a 40 s, 30 m position fault (velocity good) is ridden out on the
+    GPS velocity (within 5 m of the outlier-free run, every fault fix over TD2) and the position
+    is back at once; fuzzy-reject, for contrast, follows it (its lock-up guard lets it in after 5
+    fixes). A 12 s fault of both (20 m, 1.5 m/s) is not detected on its first fix (the fuzzy
+    alarm needs D > 1) and that fix's velocity is taken in; the axis then coasts on it and waits
+    for the position, and is back within 5 m of the outlier-free run 18 s after the fault.
+    Roll/pitch stays within 1.2x of the outlier-free run."""
+    from mcahrs.golden.robust import chi2_quantile
+
+    res = scenario("fixedwing_turns", seed=3, duration_s=260.0)
+    rec = res.recording
+    bad, pos_sel = _with_gnss_fault(rec, 120.0, 160.0, (21.2, 21.2), (0.0, 0.0))
+    bad, both_sel = _with_gnss_fault(bad, 200.0, 212.0, (-12.0, 16.0), (0.9, -1.2))
+    fuzzy = {"robust": {"mode": 3}}
+    rows = {"robust": {"mode": 3, "fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}, "coast": 1}
+    g = rec.gnss
+    t_s = g["t_us"] * 1e-6
+    after_pos = (t_s >= 160.0) & (t_s < 175.0)
+    both_and_after = (t_s >= 200.0) & (t_s < 230.0)
+    settled = t_s >= 230.0
+    dev, rp, alarmed = {}, {}, {}
+    for label, cs in (("fuzzy", fuzzy), ("rows", rows)):
+        cfg = core.nav_config("fixedwing", cs_h=cs, cs_v=cs, att=fuzzy)
+        clean, run = core.replay(rec, cfg), core.replay(bad, cfg)
+        t_out = run["t_us"].astype(np.int64)
+        at_fix = np.minimum(np.searchsorted(t_out, g["t_rx_us"], side="right"), t_out.size - 1)
+        d = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
+        dev[label] = np.hypot(d[:, 0], d[:, 1])
+        q = res.truth.euler_rad[:, :2]
+        late = run["t_us"] > 60_000_000
+        e_bad = np.degrees(np.abs(run["euler_rad"][late, :2] - q[late]))
+        e_clean = np.degrees(np.abs(clean["euler_rad"][late, :2] - q[late]))
+        rp[label] = float(np.sqrt(np.mean(e_bad**2)) / np.sqrt(np.mean(e_clean**2)))
+        T = run["gps_t"][at_fix][:, :2].astype(np.float64)
+        alarmed[label] = float(np.mean((T[pos_sel] > chi2_quantile(0.005, 2)).any(axis=1)))
+    print(
+        "position off the outlier-free run, max (m): "
+        + ", ".join(
+            f"{k} position fault {dev[k][pos_sel].max():.1f}, 15 s after it {dev[k][after_pos].max():.1f}, "
+            f"fault of both and 18 s after {dev[k][both_and_after].max():.1f}, "
+            f"then {dev[k][settled].max():.1f}"
+            for k in dev
+        )
+        + f"; roll/pitch ratio {rp}; position-fault fixes over TD2 {alarmed}"
+    )
+    assert dev["rows"][pos_sel].max() < 5.0 and dev["rows"][after_pos].max() < 5.0
+    assert alarmed["rows"] == 1.0
+    assert dev["fuzzy"][pos_sel].max() > 15.0  # the contrast: fuzzy-reject follows the fault
+    assert dev["rows"][both_and_after].max() < 25.0 and dev["rows"][settled].max() < 5.0
+    assert rp["rows"] < 1.2
