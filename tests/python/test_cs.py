@@ -498,3 +498,19 @@ def test_fuzzy_rows_and_coasting_match_golden() -> None:
     assert not rejected[101:180].any() and not rejected[291:320].any() and rejected[221:250].all()
     assert not left_out[:100].any()  # nothing wrong, nothing left out
     assert herr[100:180].max() < 5.0 and herr[220:250].max() < 5.0
+
+
+def test_config_ranges_match_the_c_core() -> None:
+    """The Gauss-Markov error stds may be 0 (a receiver error taken as white) in the golden
+    model as in the C core (mca_cs_config_check); a negative one is refused by both."""
+    for v in (0.0, -1.0):
+        for name in ("sigma_p_m", "sigma_v_mps"):
+            if v == 0.0:
+                gcs.CsAxis(replace(gcs.CsAxisConfig(), **{name: v}))
+                core.cs_config(False, **{name: v})
+            else:
+                with pytest.raises(errors.BadConfigError):
+                    gcs.CsAxis(replace(gcs.CsAxisConfig(), **{name: v}))
+                with pytest.raises(errors.BadConfigError):
+                    core.cs_config(False, **{name: v})
+

@@ -527,6 +527,8 @@ def test_not_initialised() -> None:
         dict(sigma_a_min_mps2=-0.05),
         dict(dt_max_s=0.0),
         dict(adaptive=2),
+        dict(sigma_p_m=-1.0),
+        dict(coast=2),
     ],
 )
 def test_bad_config(change: dict) -> None:

@@ -307,7 +307,8 @@ class CsAxisConfig:
         return 1.0 / self.tau_v_s
 
     def validate(self) -> None:
-        """Raise BadConfigError unless every value is finite and > 0, adaptive and coast 0/1/bool."""
+        """Raise BadConfigError unless every value is finite and > 0 (the Gauss-Markov error
+        stds sigma_p, sigma_v >= 0: a receiver error taken as white), adaptive and coast 0/1/bool."""
         for flag in ("adaptive", "coast"):
             if getattr(self, flag) not in (0, 1):  # True/False compare equal to 1/0
                 raise BadConfigError(f"{flag} must be 0 or 1, got {getattr(self, flag)!r}")
@@ -317,8 +318,9 @@ class CsAxisConfig:
             v = getattr(self, f.name)
             if not isinstance(v, (int, float, np.floating, np.integer)) or isinstance(v, bool):
                 raise BadConfigError(f"{f.name} must be a number, got {v!r}")
-            if not (math.isfinite(v) and v > 0.0):
-                raise BadConfigError(f"{f.name} must be finite and > 0, got {v!r}")
+            zero_ok = f.name in ("sigma_p_m", "sigma_v_mps")
+            if not (math.isfinite(v) and (v >= 0.0 if zero_ok else v > 0.0)):
+                raise BadConfigError(f"{f.name} must be finite and {'>=' if zero_ok else '>'} 0, got {v!r}")
 
 
 def _check_dt(T: object, dt_max_s: float) -> float:
