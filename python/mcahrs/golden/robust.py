@@ -185,7 +185,7 @@ class RobustConfig:
     """
 
     mode: str = "plain"
-    fuzzy_reject: int = True  # 0 / False inflate, 1 / True reject, 2 rows
+    fuzzy_reject: int = 1  # 0 (or False) inflate, 1 (or True) reject, 2 rows
     akf_window: int = 8
     akf_forget: float = 0.2
     akf_q_min: float = 0.5
