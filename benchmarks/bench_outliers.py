@@ -2,6 +2,7 @@
 
 Run: PYTHONPATH=python python benchmarks/bench_outliers.py [--seed N] [--duration S]
      [--scenario NAME ...] [--cs-only] [--own-test] [--no-ins | --ins-only]
+     [--cs-seeds 1-4] [--ins-seeds 1-8]   (several seeds: the summaries only, every goal a seed)
 
 Prints, never asserts. For each simulator scenario it injects GNSS faults the way the detection
 paper (001, section 3.2) tests them, and replays the clean and the faulty recording through the C
@@ -763,11 +764,10 @@ def bench_ins_scenario(name: str, seed: int, duration_s: float, white: bool = Fa
     return rows
 
 
-def ins_mode_summary(results: dict[str, list[dict]], k: int) -> dict:
-    """INS mode ``k`` of :data:`INS_MODES` over the scenarios of ``results``: its figures, and
-    whether it meets each goal that applies to it."""
-    label, mode, _ = INS_MODES[k]
-    rs = [results[n][k] for n in results]
+def mode_summary(rs: list[dict], label: str, plain: bool, fuzzy: bool) -> dict:
+    """One mode over the scenarios' results ``rs`` (CS + gravity or INS): its figures, and whether
+    it meets each goal that applies to it (``plain``: the plain filter's; ``fuzzy``: the fuzzy
+    detector's, for every mode that runs it)."""
     ratios = [r["rp_bad"] / r["rp_clean"] for r in rs]
     det = sum(r["det"].detected for r in rs)
     miss = sum(r["det"].missed for r in rs)
@@ -787,15 +787,47 @@ def ins_mode_summary(results: dict[str, list[dict]], k: int) -> dict:
         recs=recs,
         rec_ok=not diverged and all(x is not None and x <= GOAL_RECOVERY_FIXES for x in recs),
     )
-    if mode == "plain":
+    if plain:
         out["ratio_ok"] = min(ratios) >= GOAL_PLAIN_RP_RATIO
     else:
         out["ratio_ok"] = max(ratios) <= GOAL_ROBUST_RP_RATIO
-    out["all_ok"] = out["ratio_ok"] and (mode == "plain" or out["rec_ok"])
-    if label == "fuzzy":
-        fuzzy_ok = out["rate"] >= GOAL_FUZZY_DETECTION and out["cut"] >= GOAL_FUZZY_FA_CUT
-        out["all_ok"] = out["all_ok"] and fuzzy_ok
+    out["all_ok"] = out["ratio_ok"] and (plain or out["rec_ok"])
+    out["fuzzy_ok"] = None
+    if fuzzy:
+        out["fuzzy_ok"] = out["rate"] >= GOAL_FUZZY_DETECTION and out["cut"] >= GOAL_FUZZY_FA_CUT
+        out["all_ok"] = out["all_ok"] and out["fuzzy_ok"]
     return out
+
+
+def ins_mode_summary(results: dict[str, list[dict]], k: int) -> dict:
+    """INS mode ``k`` of :data:`INS_MODES` over the scenarios of ``results``."""
+    label, mode, _ = INS_MODES[k]
+    return mode_summary([results[n][k] for n in results], label, mode == "plain", mode == "fuzzy")
+
+
+def cs_mode_summary(results: dict[str, list[dict]], k: int) -> dict:
+    """CS + gravity mode ``k`` of :data:`MODES` over the scenarios of ``results``."""
+    label, mode, _ = MODES[k]
+    return mode_summary([results[n][k] for n in results], label, mode == 0, mode == 3)
+
+
+def goal_text(sm: dict, plain: bool) -> str:
+    """The goals of a mode summary, met or not."""
+    if plain:
+        return f"ratio >= {GOAL_PLAIN_RP_RATIO:.1f}x: {_goal(sm['ratio_ok'])}"
+    goal = f"ratio <= {GOAL_ROBUST_RP_RATIO:.2f}x: {_goal(sm['ratio_ok'])}"
+    if sm["fuzzy_ok"] is not None:
+        rate, cut = sm["rate"], sm["cut"]
+        goal += (
+            f"; detection {100.0 * rate:.1f}% (>= {100.0 * GOAL_FUZZY_DETECTION:.0f}%: "
+            f"{_goal(rate >= GOAL_FUZZY_DETECTION)}), FA {100.0 * cut:.0f}% fewer than SW4 "
+            f"(>= {100.0 * GOAL_FUZZY_FA_CUT:.0f}%: {_goal(cut >= GOAL_FUZZY_FA_CUT)})"
+        )
+    return goal + f"; no divergence, recovery <= {GOAL_RECOVERY_FIXES} fixes: {_goal(sm['rec_ok'])}"
+
+
+def _recs(recs: list[int | None]) -> str:
+    return " ".join("-" if x is None else str(x) for x in recs)
 
 
 def ins_summary(results: dict[str, list[dict]]) -> None:
@@ -807,24 +839,11 @@ def ins_summary(results: dict[str, list[dict]]) -> None:
     )
     for k, (label, mode, _) in enumerate(INS_MODES):
         sm = ins_mode_summary(results, k)
-        ratios, rate, cut, recs = sm["ratios"], sm["rate"], sm["cut"], sm["recs"]
-        fa, swfa, fa0, swfa0 = sm["fa"], sm["swfa"], sm["fa0"], sm["swfa0"]
-        if mode == "plain":
-            goal = f"ratio >= {GOAL_PLAIN_RP_RATIO:.1f}x: {_goal(sm['ratio_ok'])}"
-        else:
-            goal = f"ratio <= {GOAL_ROBUST_RP_RATIO:.2f}x: {_goal(sm['ratio_ok'])}"
-        if label == "fuzzy":
-            goal += (
-                f"; detection {100.0 * rate:.1f}% (>= {100.0 * GOAL_FUZZY_DETECTION:.0f}%: "
-                f"{_goal(rate >= GOAL_FUZZY_DETECTION)}), FA {100.0 * cut:.0f}% fewer than SW4 "
-                f"(>= {100.0 * GOAL_FUZZY_FA_CUT:.0f}%: {_goal(cut >= GOAL_FUZZY_FA_CUT)})"
-            )
-        if mode != "plain":
-            goal += f"; no divergence, recovery <= {GOAL_RECOVERY_FIXES} fixes: {_goal(sm['rec_ok'])}"
-        rec_txt = " ".join("-" if x is None else str(x) for x in recs)
+        clean_fa = f"{sm['fa0']} / {sm['swfa0']}"
         print(
-            f"{label:10s} {' '.join(f'{x:6.2f}' for x in ratios):>34s} {100.0 * rate:9.1f}% "
-            f"{fa:6d} {swfa:7d} {f'{fa0} / {swfa0}':>14s} {rec_txt:>16s}   {goal}"
+            f"{label:10s} {' '.join(f'{x:6.2f}' for x in sm['ratios']):>34s} {100.0 * sm['rate']:9.1f}% "
+            f"{sm['fa']:6d} {sm['swfa']:7d} {clean_fa:>14s} {_recs(sm['recs']):>16s}   "
+            f"{goal_text(sm, mode == 'plain')}"
         )
 
 
@@ -842,10 +861,9 @@ def ins_seeds(seeds: list[int], names: list[str], duration_s: float, white: bool
         ins_summary(results)
         fz, pl = ins_mode_summary(results, k_fuzzy), ins_mode_summary(results, k_plain)
         del results
-        rec_txt = " ".join("-" if x is None else str(x) for x in fz["recs"])
         lines.append(
             f"{seed:4d} {max(fz['ratios']):11.2f} {100.0 * fz['rate']:9.1f}% {fz['fa']:5d} {fz['swfa']:7d} "
-            f"{100.0 * fz['cut']:8.0f}% {rec_txt:>10s} {min(pl['ratios']):18.2f}   "
+            f"{100.0 * fz['cut']:8.0f}% {_recs(fz['recs']):>10s} {min(pl['ratios']):18.2f}   "
             f"fuzzy {_goal(fz['all_ok'])}, plain >= {GOAL_PLAIN_RP_RATIO:.1f}x {_goal(pl['ratio_ok'])}"
         )
     print(f"\n=== INS, fuzzy detector, seeds {', '.join(map(str, seeds))} ===")
@@ -856,6 +874,61 @@ def ins_seeds(seeds: list[int], names: list[str], duration_s: float, white: bool
     print("\n".join(lines))
 
 
+def cs_summary(results: dict[str, list[dict]]) -> None:
+    """The CS + gravity filter's modes over every scenario of ``results``, against the goals."""
+    names = list(results)
+    print("\n=== all scenarios ===")
+    print(
+        f"{'mode':10s} {'roll/pitch ratio (' + ', '.join(n.split('_')[0] for n in names) + ')':>34s} "
+        f"{'detection':>10s} {'FA':>6s} {'SW4 FA':>7s} {'FA / SW4 FA, outlier-free':>26s} "
+        f"{'100 s: recovery':>16s}   diverges on clean data; goal"
+    )
+    for k, (label, mode, _) in enumerate(MODES):
+        sm = cs_mode_summary(results, k)
+        div = ", ".join(n for n in names if results[n][k]["clean_diverged"]) or "no"
+        clean_fa = f"{sm['fa0']} / {sm['swfa0']}"
+        print(
+            f"{label:10s} {' '.join(f'{x:6.2f}' for x in sm['ratios']):>34s} {100.0 * sm['rate']:9.1f}% "
+            f"{sm['fa']:6d} {sm['swfa']:7d} {clean_fa:>26s} {_recs(sm['recs']):>16s}   {div}; "
+            f"{goal_text(sm, mode == 0)}"
+        )
+
+
+def cs_seeds(seeds: list[int], names: list[str], duration_s: float, cs_only: bool) -> None:
+    """The CS + gravity runs of each seed (their per-scenario tables left out, its all-scenario
+    summary printed), then every mode over the seeds against every goal. Only the summaries are
+    kept: a seed's runs are ~2 GB of outputs."""
+    by_mode: dict[int, list[str]] = {k: [] for k in range(len(MODES))}
+    met: dict[int, bool] = {k: True for k in range(len(MODES))}
+    for seed in seeds:
+        with contextlib.redirect_stdout(io.StringIO()):
+            results = {n: bench_scenario(n, SCENARIOS[n], seed, duration_s, cs_only) for n in names}
+        print(f"\n--- seed {seed}")
+        cs_summary(results)
+        for k, (_, mode, _) in enumerate(MODES):
+            sm = cs_mode_summary(results, k)
+            ratio = min(sm["ratios"]) if mode == 0 else max(sm["ratios"])
+            fuzzy = f"{100.0 * sm['rate']:9.1f}% {100.0 * sm['cut']:8.0f}%" if mode == 3 else f"{'':19s}"
+            by_mode[k].append(
+                f"{seed:4d} {ratio:11.2f} {fuzzy} {_recs(sm['recs']):>16s}   {_goal(sm['all_ok'])}"
+            )
+            met[k] = met[k] and sm["all_ok"]
+        del results
+    print(f"\n=== CS + gravity filter, seeds {', '.join(map(str, seeds))} ===")
+    print(
+        "ratio: the worst robust one over the vehicles (plain: the least); fuzzy detector: detection,\n"
+        "false alarms below SW4 on the same T; recovery: fixes after the 100 s fault (- never)"
+    )
+    print(
+        f"{'mode':10s} {'seed':>4s} {'ratio':>11s} {'detection':>10s} {'below SW4':>9s} "
+        f"{'recovery':>16s}   every goal"
+    )
+    for k, (label, _, _) in enumerate(MODES):
+        for j, line in enumerate(by_mode[k]):
+            print(f"{label if j == 0 else '':10s} {line}")
+        print(f"{'':10s} every goal on every seed: {_goal(met[k])}")
+
+
 def _between(run: Run, a: float, b: float) -> np.ndarray:
     t = run.out["t_us"] * 1e-6
     return (t >= a) & (t < b)
@@ -864,6 +937,12 @@ def _between(run: Run, a: float, b: float) -> np.ndarray:
 def _num(v: float) -> str:
     """Fixed width; huge values (divergence) in exponent form."""
     return f"{v:8.2f}" if abs(v) < 1e5 else f"{v:8.1e}"
+
+
+def _seed_list(spec: str) -> list[int]:
+    """Seeds from "1-8" or "1,3"."""
+    lo, _, hi = spec.partition("-")
+    return list(range(int(lo), int(hi) + 1)) if hi else [int(x) for x in spec.split(",")]
 
 
 def main() -> None:
@@ -879,6 +958,7 @@ def main() -> None:
         "--ins-white", action="store_true", help="INS without the receiver error model (accuracies as white)"
     )
     ap.add_argument("--ins-seeds", help="INS only, these seeds (e.g. 1-8 or 1,3): a summary line a seed")
+    ap.add_argument("--cs-seeds", help="CS + gravity only, these seeds (e.g. 1-4): every mode a seed")
     args = ap.parse_args()
     global OWN_TEST
     OWN_TEST = args.own_test
@@ -894,10 +974,11 @@ def main() -> None:
         "SW4: 4-epoch sliding-window chi-square at 0.005.\n"
         f"Errors from the first fix + {SETTLE_S:.0f} s; roll/pitch RMS over both angles; pos/vel RMS 3-D."
     )
-    if args.ins_seeds:
-        lo, _, hi = args.ins_seeds.partition("-")
-        seeds = list(range(int(lo), int(hi) + 1)) if hi else [int(x) for x in args.ins_seeds.split(",")]
-        ins_seeds(seeds, names, args.duration, args.ins_white)
+    if args.ins_seeds or args.cs_seeds:
+        if args.ins_seeds:
+            ins_seeds(_seed_list(args.ins_seeds), names, args.duration, args.ins_white)
+        if args.cs_seeds:
+            cs_seeds(_seed_list(args.cs_seeds), names, args.duration, args.cs_only)
         print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
         return
     if not args.no_ins:
@@ -907,27 +988,7 @@ def main() -> None:
         print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
         return
     results = {n: bench_scenario(n, SCENARIOS[n], args.seed, args.duration, args.cs_only) for n in names}
-
-    print("\n=== all scenarios ===")
-    print(
-        f"{'mode':10s} {'roll/pitch ratio (' + ', '.join(n.split('_')[0] for n in names) + ')':>34s} "
-        f"{'detection':>10s} {'FA':>6s} {'SW4 FA':>7s} {'FA / SW4 FA, outlier-free':>26s}"
-        "   diverges on clean data"
-    )
-    for k, (label, _, _) in enumerate(MODES):
-        rs = [results[n][k] for n in names]
-        ratios = " ".join(f"{r['rp_bad'] / r['rp_clean']:6.2f}" for r in rs)
-        det = sum(r["det"].detected for r in rs)
-        miss = sum(r["det"].missed for r in rs)
-        fa = sum(r["det"].false_alarms for r in rs)
-        swfa = sum(r["sw"].false_alarms for r in rs)
-        fa0 = sum(r["clean_fa"] for r in rs)
-        swfa0 = sum(r["sw_clean_fa"] for r in rs)
-        div = ", ".join(n for n, r in zip(names, rs, strict=True) if r["clean_diverged"]) or "no"
-        print(
-            f"{label:10s} {ratios:>34s} {100.0 * det / max(det + miss, 1):9.1f}% {fa:6d} {swfa:7d} "
-            f"{f'{fa0} / {swfa0}':>26s}   {div}"
-        )
+    cs_summary(results)
     print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
 
 
