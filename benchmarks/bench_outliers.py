@@ -74,21 +74,20 @@ SCENARIOS = {
     "multirotor_aggressive": "multirotor",
     "car_accel_brake": "ground",
 }
-# (label, mca_robust_config_t.mode, other robust fields); fuzzy-infl: fuzzy_reject = 0.
-# fuzzy-rows: fuzzy_reject = 2 (the rows that fail their own test are left out, ALGORITHMS.md 5)
-# with the CS filters coasting on the IMU while a row is out (cs coast = 1, ALGORITHMS.md 2). Its
-# lock-up guard: 100 whole rejections in a row (20 s at 5 Hz: how long the CS filter coasts on an
+# (label, mca_robust_config_t.mode, robust profile: core.robust_profile, the set-ups a user selects
+# with `mcahrs replay --robust`). fuzzy-rows: the rows that fail their own test are left out
+# (ALGORITHMS.md 5) with the CS filters coasting on the IMU while a row is out (ALGORITHMS.md 2); its
+# lock-up guard 20 s of whole rejections in a row (100 at 5 Hz: how long the CS filter coasts on an
 # IMU it has no bias estimate for), no row guard (a position left out while the velocity is
 # applied does not run open loop; the row guard would let the 100 s fault in after 10 s).
-ROWS = {"fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}
 MODES = (
-    ("plain", 0, {}),
-    ("FTA", 1, {}),
-    ("AKF", 2, {}),
-    ("fuzzy", 3, {}),
-    ("fuzzy-infl", 3, {"fuzzy_reject": 0}),
-    ("IGG-III", 4, {}),
-    ("fuzzy-rows", 3, ROWS),
+    ("plain", 0, "plain"),
+    ("FTA", 1, "fta"),
+    ("AKF", 2, "akf"),
+    ("fuzzy", 3, "fuzzy"),
+    ("fuzzy-infl", 3, "fuzzy-inflate"),
+    ("IGG-III", 4, "igg3"),
+    ("fuzzy-rows", 3, "fuzzy-rows"),
 )
 IGG_K1 = 3.0  # mca_robust_config_t default igg_k1; the IGG-III detection proxy is T > k1^2
 
@@ -201,16 +200,14 @@ def inject(rec: Recording, faults: Faults) -> Recording:
 OWN_TEST = False  # --own-test: gps_test_imu = 0
 
 
-def nav_cfg(preset: str, mode: int, extra: dict, cs_only: bool) -> object:
-    robust = {"robust": {"mode": mode, **extra}}
-    rows = extra.get("fuzzy_reject") == 2
-    cs = robust | ({"coast": 1} if rows else {})
-    over = {"cs_h": cs, "cs_v": cs, "gps_test_imu": 0 if OWN_TEST else 1}
-    if not cs_only:
-        # fuzzy rows is a CS-update variant: the attitude filter's one gravity observation (roll
-        # and pitch of one vector) takes the fuzzy default, reject
-        over["att"] = {"robust": {"mode": mode}} if rows else robust
-    return core.nav_config(preset, **over)
+def nav_cfg(preset: str, profile: str, cs_only: bool, gps_rate_hz: float) -> object:
+    """The C navigation configuration of a robust profile (``cs_only``: the attitude filter plain)."""
+    over = {
+        k: v
+        for k, v in core.robust_profile(profile, gps_rate_hz).items()
+        if not (cs_only and k.startswith("att."))
+    }
+    return core.nav_config(preset, **over, gps_test_imu=0 if OWN_TEST else 1)
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
@@ -540,8 +537,8 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
         f"{n_kind['long']} in the 100 s fault) ==="
     )
     rows = []
-    for label, mode, extra in MODES:
-        cfg = nav_cfg(preset, mode, extra, cs_only)
+    for label, mode, profile in MODES:
+        cfg = nav_cfg(preset, profile, cs_only, res.params.gps_rate_hz)
         clean = replay(rec, res, cfg)
         run = replay(bad, res, cfg)
         rows.append(dict(label=label, mode=mode, clean=clean, run=run))

@@ -122,6 +122,28 @@ def nav_config(preset: str, overrides: Mapping[str, Any] | None = None) -> Any:
         raise CliError(f"configuration (preset {preset}, overrides {ov}): {exc}") from exc
 
 
+LIVE_GPS_RATE_HZ = 5.0  # the fix rate a live bench's robust profile assumes (fuzzy-rows' guard)
+
+
+def with_robust_profile(profile: str | None, gps_rate_hz: float,
+                        overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """``--robust``: the profile's overrides (``core.robust_profile``), then ``overrides`` over them."""
+    ov = dict(overrides or {})
+    if profile is None:
+        return ov
+    try:
+        return {**core.robust_profile(profile, gps_rate_hz), **ov}
+    except errors.BadConfigError as exc:
+        raise CliError(f"--robust {profile}: {exc}") from exc
+
+
+def fix_rate_hz(rec: Recording, default: float = LIVE_GPS_RATE_HZ) -> float:
+    """The median fix rate of a recording (``default`` with fewer than two fixes)."""
+    dt = np.diff(rec.gnss["t_us"].astype(np.int64)) * 1e-6
+    dt = dt[dt > 0]
+    return float(1.0 / np.median(dt)) if dt.size else default
+
+
 def latency_us_of(latency_ms: float) -> int:
     """Receiver latency in integer microseconds (>= 0)."""
     if not math.isfinite(latency_ms) or latency_ms < 0:
@@ -550,15 +572,17 @@ def replay_recording(
 
 def replay_file(path: str | os.PathLike, preset: str = "ground", latency_ms: float = 0.0,
                 overrides: Mapping[str, Any] | None = None, clock: str = "auto",
-                progress: bool | None = None) -> ReplayResult:
-    """``mcahrs replay``: read ``path`` with the stream reader and run the C core over it."""
+                progress: bool | None = None, robust: str | None = None) -> ReplayResult:
+    """``mcahrs replay``: read ``path`` with the stream reader and run the C core over it
+    (``robust``: a robust profile, set up for the stream's fix rate, under ``overrides``)."""
     lat = latency_us_of(latency_ms)
     p = Path(path)
     try:
         rec = read_capture(p, lat, clock, progress)
     except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         raise CliError(f"cannot read {p}: {exc.strerror or exc}") from exc
-    cfg, out, rep = replay_recording(rec, preset, lat, overrides)
+    ov = with_robust_profile(robust, fix_rate_hz(rec), overrides)
+    cfg, out, rep = replay_recording(rec, preset, lat, ov)
     return ReplayResult(p, rec, cfg, out, rep)
 
 
@@ -999,6 +1023,7 @@ def run_bench(
     status_period_s: float = 0.5,
     on_event: Callable[[str], None] | None = None,
     backoff_max_s: float = 2.0,
+    robust: str | None = None,
 ) -> BenchResult:
     """``mcahrs bench``: read a live port, step the C core sample by sample, print a status line.
 
@@ -1009,10 +1034,11 @@ def run_bench(
     (KeyboardInterrupt), ``max_duration_s`` of wall time, or ``idle_timeout_s`` without a
     byte (end of data). ``log``: every byte read, in order, so ``replay`` of it reproduces the
     final report. ``on_event``: called with "open", "disconnected", "reconnected", "stop".
-    Raises :class:`CliError` if the port cannot be opened the first time.
+    ``robust``: a robust profile (set up for a :data:`LIVE_GPS_RATE_HZ` receiver) under
+    ``overrides``. Raises :class:`CliError` if the port cannot be opened the first time.
     """
     lat = latency_us_of(latency_ms)
-    live = LiveNav(preset, lat, overrides, clock)
+    live = LiveNav(preset, lat, with_robust_profile(robust, LIVE_GPS_RATE_HZ, overrides), clock)
     say = on_event or (lambda _e: None)
     logf = open(log, "wb") if log is not None else None  # noqa: SIM115 - closed in finally
     t0 = time.monotonic()
@@ -1129,6 +1155,10 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="GNSS receiver output latency: fix time = arrival - X (default 0)")
     p.add_argument("--clock", choices=("auto", "imu", "utc"), default="auto",
                    help="time base of the fixes (docs/WIRE_FORMAT.md; default auto)")
+    p.add_argument("--robust", choices=core.ROBUST_PROFILES, default=None, metavar="PROFILE",
+                   help="GNSS outlier handling on the CS and attitude filters: "
+                        f"{', '.join(core.ROBUST_PROFILES)} (README, GNSS outliers; default: the preset's, "
+                        "plain); --set applies after it")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="override a configuration field, e.g. comp_mode=0 or cs_h.robust.mode=1 (repeatable)")
 
@@ -1159,7 +1189,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     res = replay_file(args.file, preset=args.preset, latency_ms=args.latency_ms,
                       overrides=parse_overrides(args.set), clock=args.clock,
-                      progress=False if args.no_progress else None)
+                      progress=False if args.no_progress else None, robust=args.robust)
     print(f"replay of {res.path}")
     print(format_report(res.report))
     if args.csv:
@@ -1184,6 +1214,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         res = run_bench(args.port, baud=args.baud, preset=args.preset, log=args.log,
                         latency_ms=args.latency_ms, overrides=parse_overrides(args.set), clock=args.clock,
                         max_duration_s=args.max_duration, idle_timeout_s=args.idle_timeout, stop=stop,
+                        robust=args.robust,
                         on_event=lambda e: print(f"[bench] {e}", file=sys.stderr, flush=True))
     finally:
         for sig, h in handlers.items():

@@ -7,6 +7,7 @@ from the compiled C (``ffi.sizeof``, ``ffi.typeof(...).fields``), never repeated
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -558,6 +559,45 @@ def robust_config(mode: str | int = "plain", **overrides: Any) -> Any:
     _apply(cfg, overrides, "mca_robust_config_t")
     check(lib.mca_robust_config_check(cfg), "mca_robust_config_t")
     return cfg
+
+
+ROBUST_PROFILES = ("plain", "fta", "akf", "fuzzy", "fuzzy-inflate", "igg3", "fuzzy-rows")
+"""The navigation filter's robust set-ups that ``benchmarks/bench_outliers.py`` measures (README,
+GNSS outliers): one robust mode on the CS axes (``cs_h``, ``cs_v``) and the attitude filter."""
+
+ROWS_GUARD_S = 20.0
+"""fuzzy-rows' lock-up guard as a time: about as long as a CS axis without an accelerometer-bias
+estimate coasts through a fault of both before its variance lets the fault back in."""
+
+
+def robust_profile(name: str, gps_rate_hz: float = 5.0) -> dict[str, int]:
+    """The overrides of :func:`nav_config` (dotted names) that set up robust profile ``name``.
+
+    * ``plain``, ``fta``, ``akf``, ``fuzzy``, ``igg3``: that mode, with its defaults
+      (``docs/ALGORITHMS.md`` 5), on the CS axes and the attitude filter.
+    * ``fuzzy-inflate``: the fuzzy detector inflating instead of rejecting (``fuzzy_reject`` 0).
+    * ``fuzzy-rows``: the CS axes leave out only the rows that fail their own test and coast on the
+      IMU while a row is out (``fuzzy_reject`` 2, ``coast`` 1), with the whole-update guard at
+      :data:`ROWS_GUARD_S` of fixes at ``gps_rate_hz`` (at most 254) and no row guard; the attitude
+      filter's one gravity observation takes the fuzzy default, reject.
+
+    Apply other overrides after these: ``nav_config(preset, **{**robust_profile(p), **mine})``.
+    Raises BadConfigError for an unknown name or a rate that is not a finite number > 0.
+    """
+    if name not in ROBUST_PROFILES:
+        raise errors.BadConfigError(f"unknown robust profile {name!r}; known: {', '.join(ROBUST_PROFILES)}")
+    if not (math.isfinite(gps_rate_hz) and gps_rate_hz > 0.0):
+        raise errors.BadConfigError(f"robust profile {name!r}: GNSS rate {gps_rate_hz!r} Hz is not > 0")
+    mode = ROBUST_MODES[name.split("-")[0]]
+    cs: dict[str, int] = {"robust.mode": mode}
+    att: dict[str, int] = {"robust.mode": mode}
+    if name == "fuzzy-inflate":
+        cs["robust.fuzzy_reject"] = att["robust.fuzzy_reject"] = 0
+    elif name == "fuzzy-rows":
+        guard = min(254, max(1, round(ROWS_GUARD_S * gps_rate_hz)))
+        cs |= {"robust.fuzzy_reject": 2, "robust.reject_reset_n": guard, "robust.row_reset_n": 0, "coast": 1}
+    out = {f"{f}.{k}": v for f in ("cs_h", "cs_v") for k, v in cs.items()}
+    return out | {f"att.{k}": v for k, v in att.items()}
 
 
 class RobustFilterState:

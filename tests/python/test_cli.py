@@ -99,6 +99,48 @@ def test_simulate_then_replay_round_trip(tmp_path: Path, capsys: pytest.CaptureF
     assert png.read_bytes()[:4] == b"\x89PNG"
 
 
+def test_replay_robust_profile_under_set_overrides(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """``--robust`` sets up a robust profile (``core.robust_profile``, its guard for the stream's
+    fix rate) and ``--set`` applies after it. A 3 s, 2.5 m/s velocity fault on the fixes of a
+    simulated car cruising (the filter settled) moves the plain filter's roll/pitch off its
+    outlier-free run by ~1 deg; fuzzy-rows leaves the velocity out and moves it ~0.2 deg; the
+    replay is the C core's run of that configuration."""
+    import dataclasses
+
+    from mcahrs import core
+
+    rec = scenario("car_accel_brake", seed=3, rest_s=20.0, accel_s=8.0, cruise_s=20.0, stop_s=8.0).recording
+    g = rec.gnss.copy()
+    t_s = g["t_us"] * 1e-6
+    v = g["vel_ned_mps"].copy()
+    v[(t_s >= 33.0) & (t_s < 36.0), 1] += 2.5
+    g["vel_ned_mps"] = v
+    g["speed_mps"] = np.hypot(v[:, 0], v[:, 1])
+    g["course_rad"] = np.mod(np.arctan2(v[:, 1], v[:, 0]), 2.0 * np.pi)
+    streams = {}
+    for name, r in (("clean", rec), ("fault", dataclasses.replace(rec, gnss=g))):
+        streams[name] = tmp_path / f"{name}.bin"
+        streams[name].write_bytes(encode_recording(r))
+    assert cli.main(["replay", str(streams["fault"]), "--robust", "fuzzy-rows",
+                     "--set", "cs_v.robust.reject_reset_n=7", "--no-progress"]) == 0
+    _sent(capsys.readouterr().out, "'cs_h.coast': 1", "'cs_h.robust.reject_reset_n': 100",
+          "'cs_v.robust.reject_reset_n': 7", "'att.robust.mode': 3")
+    mine = {"cs_v.robust.reject_reset_n": 7}
+    dev = {}
+    for profile in ("plain", "fuzzy-rows"):
+        clean = cli.replay_file(streams["clean"], robust=profile, overrides=mine)
+        fault = cli.replay_file(streams["fault"], robust=profile, overrides=mine)
+        assert clean.out is not None and fault.out is not None
+        cfg = core.nav_config("ground", **{**core.robust_profile(profile, 5.0), **mine})
+        np.testing.assert_array_equal(fault.out["euler_rad"], core.replay(fault.rec, cfg)["euler_rad"])
+        d = fault.out["euler_rad"][:, :2].astype(np.float64) - clean.out["euler_rad"][:, :2]
+        dev[profile] = float(np.degrees(np.abs(d)).max())
+    print(f"roll/pitch off the outlier-free run, max (deg): {dev}")
+    assert dev["plain"] > 3.0 * dev["fuzzy-rows"]
+    with pytest.raises(cli.CliError, match="rate"):
+        cli.with_robust_profile("fuzzy-rows", 0.0)
+
+
 def test_replay_missing_file_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert cli.main(["replay", str(tmp_path / "nope.nmea")]) == 2
     assert "cannot read" in capsys.readouterr().err

@@ -471,13 +471,13 @@ def test_robust_modes_on_real_fixes_flag_nothing() -> None:
             pytest.skip(f"shared data not present: {path}")
         rec = load(path)
         base = core.replay(rec, core.nav_config("ground"))["euler_rad"]
-        rows = {"robust": {"mode": 3, "fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}, "coast": 1}
-        out = core.replay(rec, core.nav_config("ground", cs_h=rows, cs_v=rows, att={"robust": {"mode": 3}}))
+        rate_hz = 1.0 / float(np.median(np.diff(rec.gnss["t_us"]) * 1e-6))
+        rows = core.robust_profile("fuzzy-rows", rate_hz)
+        out = core.replay(rec, core.nav_config("ground", **rows))
         np.testing.assert_array_equal(out["euler_rad"], base, err_msg=f"{path.name} fuzzy rows")
-        for mode in (1, 3):
-            robust = {"robust": {"mode": mode}}
-            out = core.replay(rec, core.nav_config("ground", cs_h=robust, cs_v=robust, att=robust))
-            if mode == 3:
+        for profile in ("fta", "fuzzy"):
+            out = core.replay(rec, core.nav_config("ground", **core.robust_profile(profile)))
+            if profile == "fuzzy":
                 np.testing.assert_array_equal(out["euler_rad"], base, err_msg=f"{path.name} fuzzy")
             else:  # FTA inflates a gain only above chi2(1e-4): on the car once or twice
                 assert np.degrees(np.abs(out["euler_rad"][:, :2] - base[:, :2])).max() < 0.5, path.name
@@ -519,16 +519,14 @@ def test_fuzzy_rows_ride_out_a_position_fault_and_a_fault_of_both() -> None:
     rec = res.recording
     bad, pos_sel = _with_gnss_fault(rec, 120.0, 160.0, (21.2, 21.2), (0.0, 0.0))
     bad, both_sel = _with_gnss_fault(bad, 200.0, 212.0, (-12.0, 16.0), (0.9, -1.2))
-    fuzzy = {"robust": {"mode": 3}}
-    rows = {"robust": {"mode": 3, "fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}, "coast": 1}
     g = rec.gnss
     t_s = g["t_us"] * 1e-6
     after_pos = (t_s >= 160.0) & (t_s < 175.0)
     both_and_after = (t_s >= 200.0) & (t_s < 230.0)
     settled = t_s >= 230.0
     dev, rp, alarmed = {}, {}, {}
-    for label, cs in (("fuzzy", fuzzy), ("rows", rows)):
-        cfg = core.nav_config("fixedwing", cs_h=cs, cs_v=cs, att=fuzzy)
+    for label, profile in (("fuzzy", "fuzzy"), ("rows", "fuzzy-rows")):
+        cfg = core.nav_config("fixedwing", **core.robust_profile(profile, res.params.gps_rate_hz))
         clean, run = core.replay(rec, cfg), core.replay(bad, cfg)
         t_out = run["t_us"].astype(np.int64)
         at_fix = np.minimum(np.searchsorted(t_out, g["t_rx_us"], side="right"), t_out.size - 1)

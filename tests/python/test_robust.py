@@ -64,6 +64,36 @@ def test_robust_config_names_and_overrides() -> None:
         core.robust_config("akf", akf_window=99)
 
 
+@pytest.mark.parametrize("name", core.ROBUST_PROFILES)
+def test_robust_profiles_set_the_mode_on_every_robust_filter(name: str) -> None:
+    """Each profile is a valid navigation configuration that puts its mode on the three CS axes'
+    filters and the attitude filter (the rest as the preset); fuzzy-rows' guard is a time."""
+    base = core.config_dict(core.nav_config("fixedwing"))
+    cfg = core.config_dict(core.nav_config("fixedwing", **core.robust_profile(name, gps_rate_hz=10.0)))
+    mode = core.ROBUST_MODES[name.split("-")[0]]
+    for part in ("cs_h", "cs_v", "att"):
+        assert cfg[part]["robust"]["mode"] == mode, part
+    changed = {k for k in base if cfg[k] != base[k]}
+    assert changed == (set() if name == "plain" else {"cs_h", "cs_v", "att"})
+    reject = {"fuzzy-inflate": 0, "fuzzy-rows": 2}.get(name, 1)
+    assert cfg["cs_h"]["robust"]["fuzzy_reject"] == reject
+    assert cfg["att"]["robust"]["fuzzy_reject"] == (0 if name == "fuzzy-inflate" else 1)
+    if name == "fuzzy-rows":
+        assert cfg["cs_v"]["coast"] == 1 and cfg["cs_v"]["robust"]["row_reset_n"] == 0
+        assert cfg["cs_h"]["robust"]["reject_reset_n"] == round(core.ROWS_GUARD_S * 10.0)
+        assert core.robust_profile(name, gps_rate_hz=50.0)["cs_h.robust.reject_reset_n"] == 254  # its cap
+    else:
+        assert cfg["cs_h"]["coast"] == 0
+
+
+def test_robust_profile_rejects_unknown_names_and_rates() -> None:
+    with pytest.raises(errors.BadConfigError, match="huber"):
+        core.robust_profile("huber")
+    for rate in (0.0, -5.0, float("nan"), float("inf")):
+        with pytest.raises(errors.BadConfigError, match="rate"):
+            core.robust_profile("fuzzy-rows", gps_rate_hz=rate)
+
+
 def test_kf_update_leaves_inputs_and_raises_mapped_errors() -> None:
     x = np.zeros(3, np.float32)
     p = np.eye(3, dtype=np.float32)
