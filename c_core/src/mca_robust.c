@@ -27,7 +27,7 @@ void mca_robust_config_default(mca_robust_config_t *cfg)
     cfg->akf_q_max = 10.0f;
     cfg->igg_k0 = 1.5f;
     cfg->igg_k1 = 3.0f;
-    cfg->reject_reset_n = 5u;
+    cfg->reject_reset_n = (uint8_t)MCA_ROBUST_RESET_N_DEFAULT;
     cfg->row_reset_n = 50u;
 }
 
@@ -1046,7 +1046,13 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     const unsigned removed = ~pl.keep & ((1u << m) - 1u); /* rows the mode removed (IGG-III) */
     int reset = 0;
     if (rs != NULL && rc != NULL) {
-        reset = pl.rejected && rc->reject_reset_n > 0u && (unsigned)rs->n_reject + 1u >= (unsigned)rc->reject_reset_n;
+        /* fuzzy rows' long guard presumes that the caller coasts on the prediction it tests
+         * against (the CS axes on the IMU); without a test innovation the filter runs on its own
+         * mean while it rejects: the default guard */
+        const int own_mean = mode == MCA_ROBUST_FUZZY && rc->fuzzy_reject == 2u && !tested;
+        const unsigned cap = own_mean ? MCA_ROBUST_RESET_N_DEFAULT : 255u;
+        const unsigned guard = rc->reject_reset_n < cap ? rc->reject_reset_n : cap;
+        reset = pl.rejected && guard > 0u && (unsigned)rs->n_reject + 1u >= guard;
         for (size_t i = 0; i < m && rc->row_reset_n > 0u; ++i) {
             if (((removed >> i) & 1u) != 0u && (unsigned)rs->n_removed[i] + 1u >= (unsigned)rc->row_reset_n) {
                 reset = 1;

@@ -1010,6 +1010,43 @@ static void test_fuzzy_rows_leave_out_the_failing_row(void)
     CHECK(fuzzy_x == 0.0f && fuzzy_p == 1.0f);
 }
 
+/* Fuzzy rows' long guard holds only for an update tested against a prior its caller coasts on
+ * (ALGORITHMS.md 5, lock-up guard): without a test innovation the default guard applies. */
+static void test_fuzzy_rows_long_guard_needs_a_test_innovation(void)
+{
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_FUZZY);
+    rc.fuzzy_reject = 2u;
+    rc.reject_reset_n = 100u;
+    rc.row_reset_n = 0u;
+    const float h[4] = {1.0f, 0.0f, 0.0f, 1.0f}, r[4] = {0.1f, 0.0f, 0.0f, 0.1f};
+    const float z[2] = {100.0f, 50.0f}; /* both rows fail on every update */
+    for (int tested = 0; tested < 2; ++tested) {
+        mca_robust_state_t rs;
+        mca_robust_state_init(&rs);
+        mca_update_report_t rep;
+        int first_reset = 0;
+        for (int k = 1; k <= 12 && first_reset == 0; ++k) {
+            float x[2] = {0.0f, 0.0f}, p[4];
+            eye(p, 2, 1.0f);
+            const float nu_t[2] = {100.0f, 50.0f}, c_t[4] = {1.1f, 0.0f, 0.0f, 1.1f}; /* the prior x, P */
+            CHECK_EQ_INT(mca_kf_update_tested(x, p, 2, h, z, r, 2, &rc, &rs, tested ? nu_t : NULL,
+                                              tested ? c_t : NULL, g_ws, WS_MAX, &rep),
+                         MCA_OK);
+            if (rep.reset) {
+                first_reset = k;
+                CHECK(x[0] > 50.0f && x[1] > 25.0f); /* the plain update */
+            } else if (k > 1) {
+                CHECK_EQ_INT(rep.rejected, 1);
+                CHECK(x[0] == 0.0f && x[1] == 0.0f);
+            }
+        }
+        /* update 1 is plain (no alarm yet), 2.. rejected: the default guard's 5th rejection is
+         * update 6; with the test innovation the long guard keeps rejecting */
+        CHECK_EQ_INT(first_reset, tested ? 0 : 1 + (int)MCA_ROBUST_RESET_N_DEFAULT);
+    }
+}
+
 int main(void)
 {
     test_chi2_table_matches_closed_form();
@@ -1025,5 +1062,6 @@ int main(void)
     test_plain_test_statistic_small_m();
     test_plain_gains_and_test_stat();
     test_fuzzy_rows_leave_out_the_failing_row();
+    test_fuzzy_rows_long_guard_needs_a_test_innovation();
     TEST_MAIN_END();
 }

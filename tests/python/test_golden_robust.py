@@ -367,6 +367,28 @@ def test_fuzzy_release_epoch_is_applied_and_inflate_option_uses_t_over_td2() -> 
     assert np.allclose(xn, np.array([4.0, 1.0]) / (5.0 * gamma) * z, **TIGHT)
 
 
+def test_fuzzy_rows_long_guard_holds_only_with_a_test_innovation() -> None:
+    """ALGORITHMS.md 5, lock-up guard: fuzzy rows' guard of reject_reset_n rejections in a row
+    presumes a caller that coasts on the prior it tests against; an update without a test
+    innovation (the filter runs on its own mean) gets the default guard of 5."""
+    cfg = RobustConfig("fuzzy", fuzzy_reject=2, reject_reset_n=100, row_reset_n=0)
+    H, R = np.eye(2), np.diag([0.1, 0.1])
+    x, P, z = np.zeros(2), np.eye(2), np.array([100.0, 50.0])  # both rows fail every update
+    for tested in (False, True):
+        st = RobustState()
+        test = (z - H @ x, H @ P @ H.T + R) if tested else None
+        first_reset = None
+        for k in range(1, 13):
+            xn, _, rep = robust_update(x, P, H, z, R, cfg, st, test=test)
+            if rep.reset:
+                first_reset = k
+                assert xn[0] > 50.0 and xn[1] > 25.0  # the plain update
+                break
+            assert k == 1 or (rep.rejected and np.array_equal(xn, x))
+        # update 1 is plain (D = 1, no alarm yet), then rejections: the default guard's fifth is update 6
+        assert first_reset == (None if tested else 6)
+
+
 # --------------------------------------------------------------------------------------
 # IGG-III (mode 4, paper 003)
 # --------------------------------------------------------------------------------------

@@ -504,6 +504,35 @@ def _with_gnss_fault(
     return dataclasses.replace(rec, gnss=g), sel
 
 
+def test_fuzzy_rows_without_imu_aid_keeps_the_default_guard() -> None:
+    """ALGORITHMS.md 5, lock-up guard: on the real car drive a 3 m/s velocity spike on one fix
+    25 s in, before the first course-over-ground yaw (so the CS axes have no IMU aid and cannot
+    coast), is rejected at most 5 times in a row, not for the fuzzy-rows profile's 20 s, as
+    fuzzy-reject does: the CS runs on its mean for those fixes (4.8 m off the outlier-free run)
+    and is back within 1 m 20 s later (with the 20 s guard alone it ran to 770 m off)."""
+    from pathlib import Path
+
+    from mcahrs.io.loaders import load
+
+    path = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "car"
+    if not path.exists():
+        pytest.skip(f"shared data not present: {path}")
+    rec = load(path)
+    t0 = rec.gnss["t_us"][0] * 1e-6
+    bad, sel = _with_gnss_fault(rec, t0 + 25.0, t0 + 25.2, (0.0, 0.0), (3.0 * np.cos(1.0), 3.0 * np.sin(1.0)))
+    assert int(sel.sum()) == 1
+    cfg = core.nav_config("ground", **core.robust_profile("fuzzy-rows", gps_rate_hz=4.0))
+    clean, run = core.replay(rec, cfg), core.replay(bad, cfg)
+    t = run["t_us"] * 1e-6
+    dev = []
+    for a, b in ((25.0, 45.0), (45.0, 65.0)):
+        w = (t >= t0 + a) & (t < t0 + b)
+        d = run["pos_ned_m"][w, :2].astype(np.float64) - clean["pos_ned_m"][w, :2]
+        dev.append(float(np.hypot(d[:, 0], d[:, 1]).max()))
+    print(f"position off the outlier-free run, max over the 20 s after the spike and the 20 s after: {dev} m")
+    assert dev[0] < 10.0 and dev[1] < 1.0
+
+
 def test_fuzzy_rows_ride_out_a_position_fault_and_a_fault_of_both() -> None:
     """Fuzzy rows with coasting CS axes (bench_outliers' fuzzy-rows; ALGORITHMS.md 2 coasting, 5
     fuzzy rows), fixed-wing: a 40 s, 30 m position fault (velocity good) is ridden out on the

@@ -33,11 +33,16 @@ typedef enum {
 #define MCA_AKF_WINDOW 8
 
 /** Robust-mode configuration of one filter's updates. mca_robust_config_default fills it. */
+/** Default lock-up guard (mca_robust_config_t.reject_reset_n), also the guard of a fuzzy-rows update
+ * that has no test innovation (ALGORITHMS.md 5). */
+#define MCA_ROBUST_RESET_N_DEFAULT 5u
+
 typedef struct {
     uint8_t mode;          /**< mca_robust_mode_t */
     uint8_t fuzzy_reject;  /**< fuzzy alarm: 1 reject the update, 0 inflate it, 2 leave out the failing rows */
     uint8_t akf_window;    /**< AKF window length, 1..MCA_AKF_WINDOW */
-    uint8_t reject_reset_n; /**< lock-up guard: the n-th rejection in a row updates plain instead (0: off) */
+    uint8_t reject_reset_n; /**< lock-up guard: the n-th rejection in a row updates plain instead (0: off;
+                                 fuzzy rows without a test innovation: at most MCA_ROBUST_RESET_N_DEFAULT) */
     uint8_t row_reset_n;    /**< row lock-up guard: a row removed n times in a row, the same (0: off) */
     float akf_forget;      /**< AKF recursive R-estimate weight, (0, 1] */
     float akf_q_min;       /**< AKF Q factor clamp, > 0 */

@@ -170,6 +170,7 @@ FUZZY_TD1_ALPHA = 0.025  # paper 001: TD1 = chi2_m(0.025), "no outlier" below it
 FUZZY_TD2_ALPHA = 0.005  # paper 001: TD2 = chi2_m(0.005), the usual single threshold
 FUZZY_TD3_OVER_TD2 = 10.0  # paper 001: TD3 = 10 TD2, "outlier" above it
 FUZZY_ROWS = 2  # fuzzy_reject value of the rows variant (ALGORITHMS.md 5)
+RESET_N_DEFAULT = 5  # the default lock-up guard, and fuzzy rows' without a test innovation
 
 
 @dataclass
@@ -192,7 +193,7 @@ class RobustConfig:
     akf_q_max: float = 10.0
     igg_k0: float = 1.5
     igg_k1: float = 3.0
-    reject_reset_n: int = 5  # lock-up guard: the n-th rejection in a row updates plain (0: off)
+    reject_reset_n: int = RESET_N_DEFAULT  # lock-up guard: the n-th rejection in a row updates plain (0: off)
     row_reset_n: int = 50  # row lock-up guard: a row removed the n-th time in a row, the same (0: off)
 
     def validate(self) -> None:
@@ -793,7 +794,12 @@ def robust_update(
     # the memory starts afresh.
     removed = list(outcome.left_out) if outcome.left_out is not None else [bool(w == 0.0) for w in outcome.w]
     n_removed = [int(v) for v in state.n_removed]
-    reset = bool(outcome.rejected) and 0 < cfg.reject_reset_n <= int(state.n_reject) + 1
+    # Fuzzy rows' long guard presumes a caller that coasts on the prediction it tests against;
+    # an update without a test innovation runs on the filter's own mean: the default guard.
+    guard = cfg.reject_reset_n
+    if cfg.mode == "fuzzy" and cfg.fuzzy_reject == FUZZY_ROWS and test is None:
+        guard = min(guard, RESET_N_DEFAULT)
+    reset = bool(outcome.rejected) and 0 < guard <= int(state.n_reject) + 1
     reset = reset or any(r and 0 < cfg.row_reset_n <= n_removed[i] + 1 for i, r in enumerate(removed))
     if reset:
         x_plus, P_plus, plain = kf_update(x, P, H, z, R)
