@@ -3,6 +3,7 @@
 Run: PYTHONPATH=python python benchmarks/bench_outliers.py [--seed N] [--duration S]
      [--scenario NAME ...] [--cs-only] [--own-test] [--no-ins | --ins-only]
      [--cs-seeds 1-4] [--ins-seeds 1-8]   (several seeds: the summaries only, every goal a seed)
+     [--sim NAME=VALUE ...]   (simulator parameters, e.g. a gyro scale-factor error)
 
 Prints, never asserts. For each simulator scenario it injects GNSS faults the way the detection
 paper (001, section 3.2) tests them, and replays the clean and the faulty recording through the C
@@ -54,6 +55,7 @@ fixes.
 from __future__ import annotations
 
 import argparse
+import ast
 import contextlib
 import dataclasses
 import io
@@ -198,6 +200,7 @@ def inject(rec: Recording, faults: Faults) -> Recording:
 
 
 OWN_TEST = False  # --own-test: gps_test_imu = 0
+SIM_OVERRIDES: dict = {}  # --sim NAME=VALUE: simulator parameters (SimParams fields)
 
 
 def nav_cfg(preset: str, profile: str, cs_only: bool, gps_rate_hz: float) -> object:
@@ -525,7 +528,7 @@ def scores(clean: Run, run: Run, flags: np.ndarray, clean_flags: np.ndarray, fau
 
 
 def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only: bool) -> list[dict]:
-    res = scenario(name, seed=seed, duration_s=duration_s)
+    res = scenario(name, seed=seed, duration_s=duration_s, **SIM_OVERRIDES)
     rec = res.recording
     t_fix_s = rec.gnss["t_us"] * 1e-6
     faults = plan_faults(t_fix_s, duration_s, np.random.default_rng(seed + 1000))
@@ -710,7 +713,9 @@ def receiver_model(res: object) -> dict:
 
 def bench_ins_scenario(name: str, seed: int, duration_s: float, white: bool = False) -> list[dict]:
     preset = INS_PRESETS[name]
-    res = scenario(name, seed=seed, duration_s=duration_s, earth_rate=True)  # the INS removes it
+    res = scenario(
+        name, seed=seed, duration_s=duration_s, earth_rate=True, **SIM_OVERRIDES
+    )  # the INS removes it
     rec = res.recording
     t_fix_s = rec.gnss["t_us"] * 1e-6
     faults = plan_faults(t_fix_s, duration_s, np.random.default_rng(seed + 1000))
@@ -956,9 +961,19 @@ def main() -> None:
     )
     ap.add_argument("--ins-seeds", help="INS only, these seeds (e.g. 1-8 or 1,3): a summary line a seed")
     ap.add_argument("--cs-seeds", help="CS + gravity only, these seeds (e.g. 1-4): every mode a seed")
+    ap.add_argument(
+        "--sim",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="simulator parameter (SimParams field), e.g. 'gyro_scale_ppm=(5000,-5000,5000)'; repeatable",
+    )
     args = ap.parse_args()
     global OWN_TEST
     OWN_TEST = args.own_test
+    for item in args.sim:
+        key, _, text = item.partition("=")
+        SIM_OVERRIDES[key.strip()] = ast.literal_eval(text.strip())
     t_start = time.perf_counter()
     names = args.scenario or list(SCENARIOS)
     where = "CS N/E/D filters only" if args.cs_only else "CS N/E/D and attitude filters"

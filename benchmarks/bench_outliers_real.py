@@ -1,0 +1,283 @@
+"""GNSS faults injected into the real recordings of ../shared/data: the robust profiles on real sensors.
+
+Run: PYTHONPATH=python python benchmarks/bench_outliers_real.py [--data DIR] [--seed N]
+
+Prints, never asserts. ``benchmarks/bench_outliers.py`` measures the robust set-ups
+(``core.robust_profile``) on the simulator, whose receiver and IMU errors are the model's. Here
+the same kinds of fault go into real recordings, each fault alone in its own copy, so what a
+profile does with it is measured against the same profile's run without it:
+
+* the PX4 multirotor flight ``log_61`` (EKF2 attitude as reference, 2 Hz fixes), the comma2k19
+  highway minute (fused reference pose, 10 Hz) and the RTK car drive (no attitude reference,
+  4 Hz); the preset of each as ``mcahrs evaluate --preset auto`` picks it;
+* faults (horizontal, random azimuth; positions moved on the WGS-84 ellipsoid as in
+  bench_outliers, velocities added to the fix velocity, speed and course of those fixes made to
+  match): one epoch of 30 m, one of 3 m/s, a 10 s velocity burst of 2 m/s, a 10 s burst of both
+  (20 m and 2 m/s), a 30 s position fault of 30 m (the 100 s one of bench_outliers does not fit
+  the short recordings); on the short recordings once, 25 s after the start, on the car at six
+  places spread over the drive;
+* per fault and profile: roll/pitch off the profile's outlier-free run (RMS over the fault and the
+  10 s after it, deg: the damage the fault did to the attitude), where there is a reference the
+  attitude error's RMS over the same span with and without the fault, the share of the fault's
+  fixes the profile's rule flags (bench_outliers' rules on the GPS T: plain chi2(0.005), FTA
+  chi2(1e-4), AKF chi2(1e-2), the fuzzy detector re-run, IGG-III T > 9), and the position's
+  worst distance from the outlier-free run's, during the fault and 10 s after it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import sys
+import time
+import types
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pymap3d
+
+from mcahrs import core
+from mcahrs.evaluate import (
+    auto_preset,
+    estimate_ref_lag,
+    imu_is_interval_mean,
+    interp_quat,
+    quat_roll_pitch,
+    wrap_pi,
+)
+from mcahrs.samples import Recording
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_outliers as bo  # noqa: E402 - the same rules and profiles as the simulator benchmark
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_DATA = ROOT / ".." / "shared" / "data"
+RECORDINGS = ("ulog/log_61_2024-2-6-16-27-02.ulg", "comma2k19/comma2k19_example1", "car")
+START_S = 25.0  # a fault's start on the short recordings, s after the first fix
+AFTER_S = 10.0  # the span after a fault that its figures include
+CAR_PLACES = 6  # faults of each kind on the long drive
+
+# (name, duration s (0: one epoch), position offset m, velocity offset m/s)
+FAULTS = (
+    ("30 m jump", 0.0, 30.0, 0.0),
+    ("3 m/s spike", 0.0, 0.0, 3.0),
+    ("2 m/s 10 s", 10.0, 0.0, 2.0),
+    ("both 10 s", 10.0, 20.0, 2.0),
+    ("30 m 30 s", 30.0, 30.0, 0.0),
+)
+
+
+def inject(rec: Recording, sel: np.ndarray, pos_m: float, vel_mps: float, az: float) -> Recording:
+    """A copy of ``rec`` with a horizontal offset on the fixes ``sel`` (and only there)."""
+    g = rec.gnss.copy()
+    u = np.array([math.cos(az), math.sin(az), 0.0])
+    idx = np.flatnonzero(sel)
+    if pos_m:
+        off = np.tile(pos_m * u, (idx.size, 1))
+        lat0, lon0, h0 = g["lat_e7"][idx] * 1e-7, g["lon_e7"][idx] * 1e-7, g["alt_mm"][idx] * 1e-3
+        lat, lon, h = pymap3d.ned2geodetic(off[:, 0], off[:, 1], off[:, 2], lat0, lon0, h0, deg=True)
+        g["lat_e7"][idx] = np.round(np.asarray(lat) * 1e7).astype(np.int32)
+        g["lon_e7"][idx] = np.round(np.asarray(lon) * 1e7).astype(np.int32)
+        g["alt_mm"][idx] = np.round(np.asarray(h) * 1e3).astype(np.int32)
+    if vel_mps:
+        v = g["vel_ned_mps"].copy()
+        v[idx] += vel_mps * u
+        g["vel_ned_mps"] = v
+        g["speed_mps"][idx] = np.hypot(v[idx, 0], v[idx, 1])
+        g["course_rad"][idx] = np.mod(np.arctan2(v[idx, 1], v[idx, 0]), 2.0 * np.pi)
+    return dataclasses.replace(rec, name=rec.name + "+fault", gnss=g)
+
+
+@dataclasses.dataclass
+class Replay:
+    out: dict[str, np.ndarray]
+    rows: np.ndarray  # output row of each fix
+    T: np.ndarray  # (n_fix, 3) GPS T per axis
+    m: np.ndarray  # (n_fix, 3) rows of each axis' update
+    valid: np.ndarray  # fix made a CS update
+
+
+def replay(rec: Recording, cfg: object) -> Replay:
+    out = core.replay(rec, cfg)
+    rows = bo.fix_rows(out, rec)
+    valid = out["gps_status"] == 0
+    valid[int(np.flatnonzero(valid)[0])] = False  # the home fix
+    return Replay(out, rows, out["gps_t"][rows].astype(np.float64), bo.measurement_rows(rec.gnss), valid)
+
+
+def reference_rp(rec: Recording) -> np.ndarray | None:
+    """(n_imu, 2) reference roll, pitch at the IMU times (time offset measured as evaluate does)."""
+    if rec.ref is None or len(rec.ref) == 0:
+        return None
+    lag, _ = estimate_ref_lag(rec.imu, rec.ref, interval_mean=imu_is_interval_mean(rec))
+    lag = lag if math.isfinite(lag) else 0.0
+    t = rec.imu["t_us"].astype(np.int64)
+    q = interp_quat(rec.ref["t_us"].astype(np.int64) - int(round(lag * 1e6)), rec.ref["q_nb"], t)
+    return np.stack(quat_roll_pitch(q), axis=1)
+
+
+def rp_rms_deg(d: np.ndarray) -> float:
+    d = d[np.all(np.isfinite(d), axis=1)]
+    return float(np.degrees(np.sqrt(np.mean(wrap_pi(d) ** 2)))) if d.size else float("nan")
+
+
+def fault_starts(rec: Recording) -> list[float]:
+    """Fault start times (s after the first fix): 25 s on a short recording; CAR_PLACES spread
+    over a long one, each with its fault and AFTER_S clear of the next and of the end."""
+    t = rec.gnss["t_us"] * 1e-6
+    span = float(t[-1] - t[0])
+    longest = max(d for _, d, _, _ in FAULTS) + AFTER_S
+    if span < 3.0 * START_S + longest:
+        return [START_S]
+    step = (span - START_S - longest) / (CAR_PLACES - 1)
+    return [START_S + k * step for k in range(CAR_PLACES)]
+
+
+def bench_recording(path: Path, seed: int) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the loaders' notes on the logs' own quirks
+        from mcahrs.io.loaders import load
+
+        rec = load(path)
+    preset, why = auto_preset(rec, path)
+    t_fix = rec.gnss["t_us"] * 1e-6
+    t0_fix = float(t_fix[0])
+    rate_hz = 1.0 / float(np.median(np.diff(t_fix)))
+    ref = reference_rp(rec)
+    t_imu = rec.imu["t_us"] * 1e-6
+    starts = fault_starts(rec)
+    print(
+        f"\n=== {path.name} (preset {preset}: {why}; {len(rec.gnss)} fixes at {rate_hz:.1f} Hz, "
+        f"{t_fix[-1] - t0_fix:.0f} s; {'a' if ref is not None else 'no'} reference attitude; "
+        f"faults at {', '.join(f'{s:.0f}' for s in starts)} s) ==="
+    )
+    rng = np.random.default_rng(seed)
+    plans = []
+    for name, dur, pos, vel in FAULTS:
+        for s in starts:
+            a = t0_fix + s
+            if dur:
+                sel = (t_fix >= a) & (t_fix < a + dur)
+            else:
+                sel = np.zeros(t_fix.size, bool)
+                sel[int(np.argmin(np.abs(t_fix - a)))] = True
+            plans.append((name, sel, inject(rec, sel, pos, vel, rng.uniform(0.0, 2.0 * math.pi))))
+    results: dict[str, dict[str, np.ndarray]] = {}
+    for label, mode, profile in bo.MODES:
+        cfg = core.nav_config(preset, **core.robust_profile(profile, rate_hz))
+        clean = replay(rec, cfg)
+        per: dict[str, list[list[float]]] = {name: [] for name, *_ in FAULTS}
+        for name, sel, bad in plans:
+            run = replay(bad, cfg)
+            t_a, t_b = t_fix[sel][0], t_fix[sel][-1] + AFTER_S
+            win = (t_imu >= t_a) & (t_imu < t_b)
+            e_dev = run.out["euler_rad"][win, :2].astype(np.float64) - clean.out["euler_rad"][win, :2]
+            flags = bo.rule_flags(
+                bo.MODE_RULE[mode], types.SimpleNamespace(T=run.T, m=run.m, valid=run.valid)
+            )
+            share = float(np.mean(flags[sel & run.valid])) if np.any(sel & run.valid) else float("nan")
+            dp = run.out["pos_ned_m"][win, :2].astype(np.float64) - clean.out["pos_ned_m"][win, :2]
+            row = [rp_rms_deg(e_dev), share, float(np.hypot(dp[:, 0], dp[:, 1]).max())]
+            if ref is not None:
+                row += [
+                    rp_rms_deg(clean.out["euler_rad"][win, :2].astype(np.float64) - ref[win]),
+                    rp_rms_deg(run.out["euler_rad"][win, :2].astype(np.float64) - ref[win]),
+                ]
+            per[name].append(row)
+        results[label] = {name: np.mean(np.array(v), axis=0) for name, v in per.items()}
+    head = f"{'profile':12s}" + "".join(f"{name:>13s}" for name, *_ in FAULTS)
+    tables = [
+        ("roll/pitch RMS off the profile's outlier-free run, deg (fault + 10 s)", lambda v: f"{v[0]:13.2f}"),
+        ("share of the fault's fixes the profile's rule flags", lambda v: f"{100.0 * v[1]:12.0f}%"),
+        ("worst horizontal position off the outlier-free run, m", lambda v: f"{v[2]:13.1f}"),
+    ]
+    if ref is not None:
+        tables.append(
+            (
+                "roll/pitch RMS error against the reference, deg: outlier-free -> with the fault",
+                lambda v: f"{v[3]:7.2f}>{v[4]:5.2f}",
+            )
+        )
+    for title, cell in tables:
+        print(f"{title}{'' if len(starts) == 1 else ', mean of the places'}:")
+        print(head)
+        for label, res in results.items():
+            print(f"{label:12s}" + "".join(cell(res[name]) for name, *_ in FAULTS))
+    drift = gyro_only_drift(rec, preset, starts)
+    print(
+        "gyro alone from the filter's attitude and bias at each fault start, off the filter's roll/pitch "
+        f"after 2 / 5 / 10 s (deg, worst axis; what leaving gravity out costs): {drift}"
+    )
+
+
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
+
+
+def gyro_only_drift(rec: Recording, preset: str, starts: list[float]) -> str:
+    """The gyro integrated alone (the filter's bias held) from the plain filter's attitude at each
+    start, against that filter's roll/pitch 2, 5 and 10 s later; the worst axis, over the starts."""
+    out = core.replay(rec, core.nav_config(preset))
+    t = rec.imu["t_us"] * 1e-6
+    w = rec.imu["gyro_rps"].astype(np.float64)
+    t0 = rec.gnss["t_us"][0] * 1e-6
+    worst = {2.0: 0.0, 5.0: 0.0, 10.0: 0.0}
+    for s in starts:
+        i0 = int(np.searchsorted(t, t0 + s))
+        q = out["q_nb"][i0].astype(np.float64)
+        b = out["gyro_bias_rps"][i0].astype(np.float64)
+        marks = sorted(worst)
+        for i in range(i0 + 1, t.size):
+            wv = (w[i] - b) * (t[i] - t[i - 1])
+            a = float(np.linalg.norm(wv))
+            dq = (
+                np.r_[math.cos(a / 2.0), math.sin(a / 2.0) * wv / a]
+                if a > 0.0
+                else np.array([1.0, 0.0, 0.0, 0.0])
+            )
+            q = _qmul(q, dq)
+            q /= np.linalg.norm(q)
+            if marks and t[i] - t[i0] >= marks[0]:
+                d = np.stack(quat_roll_pitch(q[None]), axis=1) - np.stack(
+                    quat_roll_pitch(out["q_nb"][i][None].astype(np.float64)), axis=1
+                )
+                worst[marks[0]] = max(worst[marks[0]], float(np.degrees(np.abs(wrap_pi(d))).max()))
+                marks.pop(0)
+            if not marks:
+                break
+    return " / ".join(f"{v:.2f}" for v in worst.values())
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the shared data folder")
+    ap.add_argument("--seed", type=int, default=1, help="fault azimuths")
+    args = ap.parse_args()
+    t_start = time.perf_counter()
+    data = args.data.resolve()
+    print(
+        "GNSS faults injected into real recordings, each alone; the robust profiles of core.robust_profile."
+    )
+    for rel in RECORDINGS:
+        path = data / rel
+        if not path.exists():
+            print(f"\n{path}: not present, skipped")
+            continue
+        bench_recording(path, args.seed)
+    print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
