@@ -832,21 +832,37 @@ def _recs(recs: list[int | None]) -> str:
     return " ".join("-" if x is None else str(x) for x in recs)
 
 
-def ins_summary(results: dict[str, list[dict]]) -> None:
+def summary_table(title: str, results: dict[str, list[dict]], modes: tuple, summarize, plain_mode) -> None:
+    """Every mode of ``modes`` over the scenarios of ``results`` against the goals (``summarize``:
+    :func:`cs_mode_summary` or :func:`ins_mode_summary`; ``plain_mode``: the plain filter's mode)."""
     names = list(results)
-    print("\n=== INS, all scenarios (goals as for the CS + gravity filter) ===")
+    print(f"\n=== {title} ===")
     print(
         f"{'mode':10s} {'roll/pitch ratio (' + ', '.join(n.split('_')[0] for n in names) + ')':>34s} "
-        f"{'detection':>10s} {'FA':>6s} {'SW4 FA':>7s} {'FA/SW4, clean':>14s} {'100 s: recovery':>16s}   goal"
+        f"{'detection':>10s} {'FA':>6s} {'SW4 FA':>7s} {'FA / SW4 FA, outlier-free':>26s} "
+        f"{'100 s: recovery':>16s}   diverges on clean data; goal"
     )
-    for k, (label, mode, _) in enumerate(INS_MODES):
-        sm = ins_mode_summary(results, k)
+    for k, (label, mode, _) in enumerate(modes):
+        sm = summarize(results, k)
+        div = "-"  # not measured (the INS runs)
+        if all("clean_diverged" in results[n][k] for n in names):
+            div = ", ".join(n for n in names if results[n][k]["clean_diverged"]) or "no"
         clean_fa = f"{sm['fa0']} / {sm['swfa0']}"
         print(
             f"{label:10s} {' '.join(f'{x:6.2f}' for x in sm['ratios']):>34s} {100.0 * sm['rate']:9.1f}% "
-            f"{sm['fa']:6d} {sm['swfa']:7d} {clean_fa:>14s} {_recs(sm['recs']):>16s}   "
-            f"{goal_text(sm, mode == 'plain')}"
+            f"{sm['fa']:6d} {sm['swfa']:7d} {clean_fa:>26s} {_recs(sm['recs']):>16s}   {div}; "
+            f"{goal_text(sm, mode == plain_mode)}"
         )
+
+
+def ins_summary(results: dict[str, list[dict]]) -> None:
+    summary_table(
+        "INS, all scenarios (goals as for the CS + gravity filter)",
+        results,
+        INS_MODES,
+        ins_mode_summary,
+        "plain",
+    )
 
 
 def ins_seeds(seeds: list[int], names: list[str], duration_s: float, white: bool) -> None:
@@ -878,22 +894,7 @@ def ins_seeds(seeds: list[int], names: list[str], duration_s: float, white: bool
 
 def cs_summary(results: dict[str, list[dict]]) -> None:
     """The CS + gravity filter's modes over every scenario of ``results``, against the goals."""
-    names = list(results)
-    print("\n=== all scenarios ===")
-    print(
-        f"{'mode':10s} {'roll/pitch ratio (' + ', '.join(n.split('_')[0] for n in names) + ')':>34s} "
-        f"{'detection':>10s} {'FA':>6s} {'SW4 FA':>7s} {'FA / SW4 FA, outlier-free':>26s} "
-        f"{'100 s: recovery':>16s}   diverges on clean data; goal"
-    )
-    for k, (label, mode, _) in enumerate(MODES):
-        sm = cs_mode_summary(results, k)
-        div = ", ".join(n for n in names if results[n][k]["clean_diverged"]) or "no"
-        clean_fa = f"{sm['fa0']} / {sm['swfa0']}"
-        print(
-            f"{label:10s} {' '.join(f'{x:6.2f}' for x in sm['ratios']):>34s} {100.0 * sm['rate']:9.1f}% "
-            f"{sm['fa']:6d} {sm['swfa']:7d} {clean_fa:>26s} {_recs(sm['recs']):>16s}   {div}; "
-            f"{goal_text(sm, mode == 0)}"
-        )
+    summary_table("all scenarios", results, MODES, cs_mode_summary, 0)
 
 
 def cs_seeds(seeds: list[int], names: list[str], duration_s: float, cs_only: bool) -> None:
