@@ -32,11 +32,11 @@ typedef enum {
 /** Longest innovation window any mode keeps (AKF). */
 #define MCA_AKF_WINDOW 8
 
-/** Robust-mode configuration of one filter's updates. mca_robust_config_default fills it. */
 /** Default lock-up guard (mca_robust_config_t.reject_reset_n), also the guard of a fuzzy-rows update
  * that has no test innovation (ALGORITHMS.md 5). */
 #define MCA_ROBUST_RESET_N_DEFAULT 5u
 
+/** Robust-mode configuration of one filter's updates. mca_robust_config_default fills it. */
 typedef struct {
     uint8_t mode;          /**< mca_robust_mode_t */
     uint8_t fuzzy_reject;  /**< fuzzy alarm: 1 reject the update, 0 inflate it, 2 leave out the failing rows */
