@@ -42,6 +42,7 @@ from mcahrs import core
 from mcahrs.evaluate import (
     auto_preset,
     estimate_ref_lag,
+    gyro_only_drift,
     imu_is_interval_mean,
     interp_quat,
     quat_roll_pitch,
@@ -205,58 +206,19 @@ def bench_recording(path: Path, seed: int) -> None:
         print(head)
         for label, res in results.items():
             print(f"{label:12s}" + "".join(cell(res[name]) for name, *_ in FAULTS))
-    drift = gyro_only_drift(rec, preset, starts)
+    drift = gyro_only_text(rec, preset, starts)
     print(
         "gyro alone from the filter's attitude and bias at each fault start, off the filter's roll/pitch "
         f"after 2 / 5 / 10 s (deg, worst axis; what leaving gravity out costs): {drift}"
     )
 
 
-def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
-    )
-
-
-def gyro_only_drift(rec: Recording, preset: str, starts: list[float]) -> str:
-    """The gyro integrated alone (the filter's bias held) from the plain filter's attitude at each
-    start, against that filter's roll/pitch 2, 5 and 10 s later; the worst axis, over the starts."""
+def gyro_only_text(rec: Recording, preset: str, starts: list[float]) -> str:
+    """The worst, over the fault starts, of ``evaluate.gyro_only_drift`` from the plain filter."""
     out = core.replay(rec, core.nav_config(preset))
-    t = rec.imu["t_us"] * 1e-6
-    w = rec.imu["gyro_rps"].astype(np.float64)
-    t0 = rec.gnss["t_us"][0] * 1e-6
-    worst = {2.0: 0.0, 5.0: 0.0, 10.0: 0.0}
-    for s in starts:
-        i0 = int(np.searchsorted(t, t0 + s))
-        q = out["q_nb"][i0].astype(np.float64)
-        b = out["gyro_bias_rps"][i0].astype(np.float64)
-        marks = sorted(worst)
-        for i in range(i0 + 1, t.size):
-            wv = (w[i] - b) * (t[i] - t[i - 1])
-            a = float(np.linalg.norm(wv))
-            dq = (
-                np.r_[math.cos(a / 2.0), math.sin(a / 2.0) * wv / a]
-                if a > 0.0
-                else np.array([1.0, 0.0, 0.0, 0.0])
-            )
-            q = _qmul(q, dq)
-            q /= np.linalg.norm(q)
-            if marks and t[i] - t[i0] >= marks[0]:
-                d = np.stack(quat_roll_pitch(q[None]), axis=1) - np.stack(
-                    quat_roll_pitch(out["q_nb"][i][None].astype(np.float64)), axis=1
-                )
-                worst[marks[0]] = max(worst[marks[0]], float(np.degrees(np.abs(wrap_pi(d))).max()))
-                marks.pop(0)
-            if not marks:
-                break
-    return " / ".join(f"{v:.2f}" for v in worst.values())
+    t0_us = int(rec.gnss["t_us"][0])
+    drift = gyro_only_drift(rec, out, [t0_us + round(s * 1e6) for s in starts])
+    return " / ".join(f"{v:.2f}" for v in np.nanmax(drift, axis=0))
 
 
 def main() -> int:

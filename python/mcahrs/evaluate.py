@@ -147,6 +147,53 @@ def wrap_pi(a: np.ndarray) -> np.ndarray:
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 
+GYRO_DRIFT_HORIZONS_S = (2.0, 5.0, 10.0)
+GYRO_DRIFT_STEP_S = 10.0  # starts of the gyro-only drift diagnostic, this far apart
+GYRO_DRIFT_MAX_STARTS = 30
+
+
+def gyro_only_drift(rec: Recording, out: dict[str, np.ndarray], starts_us: Sequence[int],
+                    horizons_s: Sequence[float] = GYRO_DRIFT_HORIZONS_S) -> np.ndarray:
+    """How far the gyro alone takes the attitude from the filter's: from the filter's attitude
+    ``q_nb`` and gyro bias at each start, the gyro (minus that bias, each sample over its interval)
+    integrated alone, against the filter's roll/pitch ``horizons_s`` later. Returns
+    (len(starts_us), len(horizons_s)) of the worst of roll and pitch (deg); NaN where a horizon
+    passes the end. What leaving the gravity observation out for that long costs (README, GNSS
+    outliers: the flagged-fix rule of docs/ALGORITHMS.md 8, GPS step 6)."""
+    t = rec.imu["t_us"].astype(np.int64)
+    w = np.asarray(rec.imu["gyro_rps"], np.float64)
+    res = np.full((len(starts_us), len(horizons_s)), np.nan)
+    for k, t0 in enumerate(starts_us):
+        i0 = int(np.searchsorted(t, int(t0)))
+        if i0 >= len(t) or not np.all(np.isfinite(out["q_nb"][i0])):
+            continue
+        qw, qx, qy, qz = (float(v) for v in out["q_nb"][i0])
+        b = [float(v) for v in out["gyro_bias_rps"][i0]]
+        marks = [int(t[i0] + round(h * 1e6)) for h in horizons_s]
+        j = 0
+        for i in range(i0 + 1, len(t)):
+            dt = (t[i] - t[i - 1]) * 1e-6
+            vx, vy, vz = ((w[i, a] - b[a]) * dt for a in range(3))
+            ang = math.sqrt(vx * vx + vy * vy + vz * vz)
+            if ang > 0.0:
+                c, sn = math.cos(0.5 * ang), math.sin(0.5 * ang) / ang
+                dw, dx, dy, dz = c, vx * sn, vy * sn, vz * sn
+                qw, qx, qy, qz = (qw * dw - qx * dx - qy * dy - qz * dz,
+                                  qw * dx + qx * dw + qy * dz - qz * dy,
+                                  qw * dy - qx * dz + qy * dw + qz * dx,
+                                  qw * dz + qx * dy - qy * dx + qz * dw)
+                nq = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+                qw, qx, qy, qz = qw / nq, qx / nq, qy / nq, qz / nq
+            while j < len(marks) and t[i] >= marks[j]:
+                q = np.array([[qw, qx, qy, qz], out["q_nb"][i].astype(np.float64)])
+                r, p = quat_roll_pitch(q)
+                res[k, j] = float(np.degrees(max(abs(wrap_pi(r[0] - r[1])), abs(p[0] - p[1]))))
+                j += 1
+            if j == len(marks):
+                break
+    return res
+
+
 def interp_quat(t_src_us: np.ndarray, q_src: np.ndarray, t_us: np.ndarray,
                 max_gap_s: float = REF_MAX_GAP_S) -> np.ndarray:
     """Slerp unit quaternions ``q_src`` (at ``t_src_us``) to the times ``t_us``.
@@ -757,6 +804,15 @@ def _diagnostics(rec: Recording, mc: MethodRun, ev: Evaluation) -> dict[str, Any
     d["grav_obs_skipped"] = int(out["n_grav_skip"][-1])
     d["gps_lost_fraction"] = float(np.mean((out["flags"] & core.FLAG_BITS["gps_lost"]) != 0))
     d["gyro_bias_end_dps"] = (out["gyro_bias_rps"][-1].astype(np.float64) * DEG).tolist()
+    if ev.t_eval0_us > 0:
+        span = float(ev.t_us[-1] - ev.t_eval0_us) * 1e-6 - GYRO_DRIFT_HORIZONS_S[-1]
+        n = min(GYRO_DRIFT_MAX_STARTS, int(span // GYRO_DRIFT_STEP_S) + 1) if span >= 0.0 else 0
+        if n > 0:
+            starts = [ev.t_eval0_us + round(k * GYRO_DRIFT_STEP_S * 1e6) for k in range(n)]
+            drift = gyro_only_drift(rec, out, starts)
+            d["gyro_only_drift_deg"] = {"horizons_s": list(GYRO_DRIFT_HORIZONS_S), "starts": n,
+                                        "median": np.nanmedian(drift, axis=0).tolist(),
+                                        "max": np.nanmax(drift, axis=0).tolist()}
     aligned = (out["flags"] & core.FLAG_BITS["aligned"]) != 0
     if aligned.any():
         ia = int(np.argmax(aligned))
@@ -971,6 +1027,15 @@ def format_report(ev: Evaluation) -> str:
             )
         lines.append("  MCAHRS gyro bias at the end: " + "/".join(f"{v:+.3f}" for v in d["gyro_bias_end_dps"])
                      + " deg/s")
+        if "gyro_only_drift_deg" in d:
+            g = d["gyro_only_drift_deg"]
+            lines.append(
+                "  gyro alone from MCAHRS's attitude and bias, off it after "
+                + "/".join(f"{h:g}" for h in g["horizons_s"]) + " s: median "
+                + "/".join(f"{v:.2f}" for v in g["median"]) + ", worst "
+                + "/".join(f"{v:.2f}" for v in g["max"]) + f" deg over {g['starts']} starts"
+                + " (what a robust profile's gravity hold costs: README, GNSS outliers)"
+            )
         if "align_t_s" in d:
             how = "init timeout (no still window)" if d["align_by_timeout"] else "still window"
             txt = (f"  MCAHRS aligned at {d['align_t_s']:.2f} s by {how}: roll {d['align_rp_deg'][0]:+.1f}, "
