@@ -16,6 +16,9 @@ profile does with it is measured against the same profile's run without it:
   (20 m and 2 m/s), a 30 s position fault of 30 m (the 100 s one of bench_outliers does not fit
   the short recordings); on the short recordings once, 25 s after the start, on the car at six
   places spread over the drive;
+* the CS + gravity filter in each robust profile, then the 15-state INS in each robust mode with
+  the real-recording set-up of ``mcahrs evaluate`` (``REAL_INS``: EKF2's accuracy floors and IMU
+  noise; its flags: the mode's ``detected``, plain T > chi2_m(0.005));
 * per fault and profile: roll/pitch off the profile's outlier-free run (RMS over the fault and the
   10 s after it, deg: the damage the fault did to the attitude), where there is a reference the
   attitude error's RMS over the same span with and without the fault, the share of the fault's
@@ -40,6 +43,7 @@ import pymap3d
 
 from mcahrs import core
 from mcahrs.evaluate import (
+    REAL_INS,
     auto_preset,
     estimate_ref_lag,
     gyro_only_drift,
@@ -147,7 +151,6 @@ def bench_recording(path: Path, seed: int) -> None:
     t0_fix = float(t_fix[0])
     rate_hz = 1.0 / float(np.median(np.diff(t_fix)))
     ref = reference_rp(rec)
-    t_imu = rec.imu["t_us"] * 1e-6
     starts = fault_starts(rec)
     print(
         f"\n=== {path.name} (preset {preset}: {why}; {len(rec.gnss)} fixes at {rate_hz:.1f} Hz, "
@@ -165,36 +168,81 @@ def bench_recording(path: Path, seed: int) -> None:
                 sel = np.zeros(t_fix.size, bool)
                 sel[int(np.argmin(np.abs(t_fix - a)))] = True
             plans.append((name, sel, inject(rec, sel, pos, vel, rng.uniform(0.0, 2.0 * math.pi))))
-    results: dict[str, dict[str, np.ndarray]] = {}
+    cs_runs = []
     for label, mode, profile in bo.MODES:
         cfg = core.nav_config(preset, **core.robust_profile(profile, rate_hz))
-        clean = replay(rec, cfg)
+        cs_runs.append((label, lambda r, cfg=cfg, mode=mode: cs_run(r, cfg, mode)))
+    ins_runs = []
+    for label, mode, extra in bo.INS_MODES:
+        cfg = core.ins_config(preset, robust=mode, **{**REAL_INS, **extra})
+        ins_runs.append((label, lambda r, cfg=cfg, mode=mode: ins_run(r, cfg, mode)))
+    for what, runs in (
+        ("CS + gravity filter, robust profiles", cs_runs),
+        ("15-state INS (evaluate's REAL_INS)", ins_runs),
+    ):
+        results = measure(runs, rec, plans, ref)
+        print(f"-- {what}")
+        print_tables(results, ref is not None, len(starts) > 1)
+    drift = gyro_only_text(rec, preset, starts)
+    print(
+        "gyro alone from the CS + gravity filter's attitude and bias at each fault start, off its roll/pitch "
+        f"after 2 / 5 / 10 s (deg, worst axis; what leaving gravity out costs): {drift}"
+    )
+
+
+def cs_run(rec: Recording, cfg: object, mode: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The CS + gravity filter's output, and per fix whether its mode's rule flagged it."""
+    r = replay(rec, cfg)
+    ns = types.SimpleNamespace(T=r.T, m=r.m, valid=r.valid)
+    return r.out, bo.rule_flags(bo.MODE_RULE[mode], ns) & r.valid
+
+
+def ins_run(rec: Recording, cfg: object, mode: str) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The INS's output, and per fix its ``detected`` flag (plain: T > chi2_m(0.005))."""
+    out = core.ins_replay(rec, cfg)
+    rows = bo.fix_rows(out, rec)
+    valid = out["gps_status"] == 0
+    T = out["gps_t"][rows].astype(np.float64)[:, None]
+    m = out["gps_m"][rows].astype(int)[:, None]
+    ns = types.SimpleNamespace(out=out, rows=rows, valid=valid, T=T, m=m)
+    return out, bo.ins_flags(ns, mode)
+
+
+def measure(
+    runs: list, rec: Recording, plans: list, ref: np.ndarray | None
+) -> dict[str, dict[str, np.ndarray]]:
+    """Per run (label, function of a recording -> output, per-fix flags) and fault: roll/pitch RMS
+    off its outlier-free run, share of the fault's fixes flagged, worst position off, and with a
+    reference the attitude error's RMS without and with the fault; means over the places."""
+    t_fix = rec.gnss["t_us"] * 1e-6
+    t_imu = rec.imu["t_us"] * 1e-6
+    results: dict[str, dict[str, np.ndarray]] = {}
+    for label, run_fn in runs:
+        clean, _ = run_fn(rec)
         per: dict[str, list[list[float]]] = {name: [] for name, *_ in FAULTS}
         for name, sel, bad in plans:
-            run = replay(bad, cfg)
-            t_a, t_b = t_fix[sel][0], t_fix[sel][-1] + AFTER_S
-            win = (t_imu >= t_a) & (t_imu < t_b)
-            e_dev = run.out["euler_rad"][win, :2].astype(np.float64) - clean.out["euler_rad"][win, :2]
-            flags = bo.rule_flags(
-                bo.MODE_RULE[mode], types.SimpleNamespace(T=run.T, m=run.m, valid=run.valid)
-            )
-            share = float(np.mean(flags[sel & run.valid])) if np.any(sel & run.valid) else float("nan")
-            dp = run.out["pos_ned_m"][win, :2].astype(np.float64) - clean.out["pos_ned_m"][win, :2]
-            row = [rp_rms_deg(e_dev), share, float(np.hypot(dp[:, 0], dp[:, 1]).max())]
+            out, flags = run_fn(bad)
+            win = (t_imu >= t_fix[sel][0]) & (t_imu < t_fix[sel][-1] + AFTER_S)
+            e_run = out["euler_rad"][win, :2].astype(np.float64)
+            e_clean = clean["euler_rad"][win, :2].astype(np.float64)
+            share = float(np.mean(flags[sel])) if np.any(sel) else float("nan")
+            dp = out["pos_ned_m"][win, :2].astype(np.float64) - clean["pos_ned_m"][win, :2]
+            row = [rp_rms_deg(e_run - e_clean), share, float(np.hypot(dp[:, 0], dp[:, 1]).max())]
             if ref is not None:
-                row += [
-                    rp_rms_deg(clean.out["euler_rad"][win, :2].astype(np.float64) - ref[win]),
-                    rp_rms_deg(run.out["euler_rad"][win, :2].astype(np.float64) - ref[win]),
-                ]
+                row += [rp_rms_deg(e_clean - ref[win]), rp_rms_deg(e_run - ref[win])]
             per[name].append(row)
         results[label] = {name: np.mean(np.array(v), axis=0) for name, v in per.items()}
+    return results
+
+
+def print_tables(results: dict[str, dict[str, np.ndarray]], with_ref: bool, places: bool) -> None:
     head = f"{'profile':12s}" + "".join(f"{name:>13s}" for name, *_ in FAULTS)
     tables = [
-        ("roll/pitch RMS off the profile's outlier-free run, deg (fault + 10 s)", lambda v: f"{v[0]:13.2f}"),
-        ("share of the fault's fixes the profile's rule flags", lambda v: f"{100.0 * v[1]:12.0f}%"),
+        ("roll/pitch RMS off the outlier-free run, deg (fault + 10 s)", lambda v: f"{v[0]:13.2f}"),
+        ("share of the fault's fixes flagged", lambda v: f"{100.0 * v[1]:12.0f}%"),
         ("worst horizontal position off the outlier-free run, m", lambda v: f"{v[2]:13.1f}"),
     ]
-    if ref is not None:
+    if with_ref:
         tables.append(
             (
                 "roll/pitch RMS error against the reference, deg: outlier-free -> with the fault",
@@ -202,15 +250,10 @@ def bench_recording(path: Path, seed: int) -> None:
             )
         )
     for title, cell in tables:
-        print(f"{title}{'' if len(starts) == 1 else ', mean of the places'}:")
+        print(f"{title}{', mean of the places' if places else ''}:")
         print(head)
         for label, res in results.items():
             print(f"{label:12s}" + "".join(cell(res[name]) for name, *_ in FAULTS))
-    drift = gyro_only_text(rec, preset, starts)
-    print(
-        "gyro alone from the filter's attitude and bias at each fault start, off the filter's roll/pitch "
-        f"after 2 / 5 / 10 s (deg, worst axis; what leaving gravity out costs): {drift}"
-    )
 
 
 def gyro_only_text(rec: Recording, preset: str, starts: list[float]) -> str:
