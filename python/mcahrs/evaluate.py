@@ -463,22 +463,29 @@ class MethodRun:
     comp_mode: int | None = None
 
 
-def run_core(rec: Recording, preset: str, comp_mode: int) -> dict[str, np.ndarray]:
-    """The C core on ``rec`` with a preset and only ``comp_mode`` changed."""
+def run_core(rec: Recording, preset: str, comp_mode: int, robust: str | None = None) -> dict[str, np.ndarray]:
+    """The C core on ``rec`` with a preset and only ``comp_mode`` changed, and with ``robust`` a
+    robust profile (``core.robust_profile``, set up for the recording's median fix rate)."""
     from mcahrs import core
 
-    return core.replay(rec, core.nav_config(preset, comp_mode=comp_mode))
+    over: dict[str, Any] = {}
+    if robust is not None:
+        dt = np.diff(rec.gnss["t_us"].astype(np.int64)) * 1e-6
+        dt = dt[dt > 0]
+        over = core.robust_profile(robust, float(1.0 / np.median(dt)) if dt.size else 5.0)
+    return core.replay(rec, core.nav_config(preset, comp_mode=comp_mode, **over))
 
 
-def _core_run(name: str, rec: Recording, preset: str, comp_mode: int) -> MethodRun:
+def _core_run(name: str, rec: Recording, preset: str, comp_mode: int, robust: str | None = None) -> MethodRun:
     from mcahrs import core
 
-    out = run_core(rec, preset, comp_mode)
+    out = run_core(rec, preset, comp_mode, robust)
     e = out["euler_rad"].astype(np.float64)
     aligned = (out["flags"] & core.FLAG_BITS["aligned"]) != 0
     roll = np.where(aligned, e[:, 0], np.nan)
     pitch = np.where(aligned, e[:, 1], np.nan)
-    return MethodRun(name, roll, pitch, f"C core, preset {preset}, comp_mode {comp_mode}", out, comp_mode)
+    how = f"C core, preset {preset}, comp_mode {comp_mode}" + (f", robust profile {robust}" if robust else "")
+    return MethodRun(name, roll, pitch, how, out, comp_mode)
 
 
 def run_golden(rec: Recording, preset: str) -> dict[str, np.ndarray]:
@@ -677,6 +684,7 @@ class Evaluation:
     imu_rate_hz: float = float("nan")
     diagnostics: dict[str, Any] = field(default_factory=dict)
     goals: list[str] = field(default_factory=list)
+    robust: str | None = None  # the MCAHRS runs' robust profile (None: the preset's, plain)
 
     def run(self, name: str) -> MethodRun:
         return next(r for r in self.runs if r.name == name)
@@ -687,8 +695,10 @@ class Evaluation:
 def evaluate(rec: Recording, preset: str = "auto", *, path: str | Path | None = None,
              settle_s: float = SETTLE_S, ref_lag: float | str = "auto",
              threshold_mps2: float = MANEUVER_THRESHOLD_MPS2, golden: bool = True,
-             baselines: bool = True) -> Evaluation:
-    """Run every method on ``rec`` and compute the statistics (see the module docstring)."""
+             baselines: bool = True, robust: str | None = None) -> Evaluation:
+    """Run every method on ``rec`` and compute the statistics (see the module docstring).
+    ``robust``: the MCAHRS runs in that robust profile (``core.robust_profile``; the INS and the
+    other baselines as they are; no golden comparison, the golden model has no robust modes)."""
     from mcahrs import core
 
     why = "given"
@@ -699,6 +709,7 @@ def evaluate(rec: Recording, preset: str = "auto", *, path: str | Path | None = 
     t = rec.imu["t_us"].astype(np.int64)
     ev = Evaluation(rec.name, str(rec.meta.get("source", "?")), preset, why, reference_kind(rec), t, [])
     ev.threshold_mps2 = threshold_mps2
+    ev.robust = robust
     dt = np.diff(t) * 1e-6
     ev.imu_rate_hz = float(1.0 / np.median(dt)) if len(dt) else float("nan")
     if ev.imu_rate_hz < MIN_IMU_RATE_HZ:
@@ -707,8 +718,13 @@ def evaluate(rec: Recording, preset: str = "auto", *, path: str | Path | None = 
             "results shown for completeness, goals not assessed"
         )
 
-    runs = [_core_run(MCAHRS, rec, preset, 1), _core_run(COMP_OFF, rec, preset, 0),
-            _core_run(VELDIFF, rec, preset, 2)]
+    if robust is not None and robust != "plain":
+        if golden:
+            ev.notes.append(f"robust profile {robust}: no golden-model comparison (the golden model "
+                            "has no robust modes)")
+        golden = False
+    runs = [_core_run(MCAHRS, rec, preset, 1, robust), _core_run(COMP_OFF, rec, preset, 0, robust),
+            _core_run(VELDIFF, rec, preset, 2, robust)]
     if baselines:
         from mcahrs import baselines as bl
 
@@ -913,7 +929,8 @@ def format_report(ev: Evaluation) -> str:
     """The printed tables."""
     t = ev.t_us
     t0 = t[0]
-    lines = [f"=== {ev.name}  [{ev.source}; preset {ev.preset} ({ev.preset_why})]"]
+    robust = f"; robust profile {ev.robust}" if ev.robust else ""
+    lines = [f"=== {ev.name}  [{ev.source}; preset {ev.preset} ({ev.preset_why}){robust}]"]
     dur = (t[-1] - t0) * 1e-6
     lines.append(f"IMU {len(t)} samples, {dur:.1f} s, {ev.imu_rate_hz:.1f} Hz median; "
                  f"reference: {ev.ref_kind}")
@@ -1209,6 +1226,10 @@ def main_evaluate(argv: list[str] | None = None) -> int:
     ap.add_argument("--threshold", type=float, default=MANEUVER_THRESHOLD_MPS2, metavar="A",
                     help=f"maneuvering when |a_h| > A m/s^2 (default {MANEUVER_THRESHOLD_MPS2:g})")
     ap.add_argument("--no-golden", action="store_true", help="skip the golden-model run (slow on long logs)")
+    from mcahrs.core import ROBUST_PROFILES
+
+    ap.add_argument("--robust", choices=ROBUST_PROFILES, default=None, metavar="PROFILE",
+                    help="the MCAHRS runs in this robust profile (mcahrs.core.robust_profile; default plain)")
     ap.add_argument("--gps-delay-ms", type=float, default=None, metavar="MS",
                     help="ULog only: fix validity = publication time - MS (default: the loader's, 0)")
     args = ap.parse_args(argv)
@@ -1228,7 +1249,7 @@ def main_evaluate(argv: list[str] | None = None) -> int:
         print(f"mcahrs evaluate: {exc}", file=sys.stderr)
         return 2
     ev = evaluate(rec, args.preset, path=args.log, settle_s=args.settle, ref_lag=ref_lag,
-                  threshold_mps2=args.threshold, golden=not args.no_golden)
+                  threshold_mps2=args.threshold, golden=not args.no_golden, robust=args.robust)
     print(format_report(ev))
     if args.csv:
         write_csv(ev, args.csv)

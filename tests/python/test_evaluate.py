@@ -282,6 +282,25 @@ def test_evaluate_short_cut_prints_table_and_writes_plots(
     assert len(rows) - 1 == len(cut_recording(load(COMMA), 0.0, 25.0).imu)
 
 
+def test_evaluate_robust_profile_runs_mcahrs_in_it() -> None:
+    """``evaluate(..., robust=P)`` (``mcahrs evaluate --robust P``): the MCAHRS runs are the C core
+    in profile P for the recording's fix rate, the report says so, and the golden comparison is
+    left out with a note (the golden model has no robust modes)."""
+    from mcahrs.evaluate import MCAHRS, evaluate, format_report
+
+    _need(COMMA)
+    rec = cut_recording(load(COMMA), 0.0, 25.0)
+    ev = evaluate(rec, "ground", robust="igg3", baselines=False)
+    assert ev.robust == "igg3" and ev.golden is None
+    assert any("no golden-model comparison" in n for n in ev.notes)
+    rate_hz = 1.0 / float(np.median(np.diff(rec.gnss["t_us"]) * 1e-6))
+    cfg = core.nav_config("ground", comp_mode=1, **core.robust_profile("igg3", rate_hz))
+    mc = ev.run(MCAHRS).out
+    assert mc is not None
+    np.testing.assert_array_equal(mc["euler_rad"], core.replay(rec, cfg)["euler_rad"])
+    assert "robust profile igg3" in format_report(ev)
+
+
 def test_evaluate_without_reference_reports_stop_tilt(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     _need(CAR)
     rc = main_evaluate(
