@@ -149,7 +149,7 @@ def bench_recording(path: Path, seed: int) -> None:
     preset, why = auto_preset(rec, path)
     t_fix = rec.gnss["t_us"] * 1e-6
     t0_fix = float(t_fix[0])
-    rate_hz = 1.0 / float(np.median(np.diff(t_fix)))
+    rate_hz = core.fix_rate_hz(rec)
     ref = reference_rp(rec)
     starts = fault_starts(rec)
     print(

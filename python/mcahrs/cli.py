@@ -137,13 +137,6 @@ def with_robust_profile(profile: str | None, gps_rate_hz: float,
         raise CliError(f"--robust {profile}: {exc}") from exc
 
 
-def fix_rate_hz(rec: Recording, default: float = LIVE_GPS_RATE_HZ) -> float:
-    """The median fix rate of a recording (``default`` with fewer than two fixes)."""
-    dt = np.diff(rec.gnss["t_us"].astype(np.int64)) * 1e-6
-    dt = dt[dt > 0]
-    return float(1.0 / np.median(dt)) if dt.size else default
-
-
 def latency_us_of(latency_ms: float) -> int:
     """Receiver latency in integer microseconds (>= 0)."""
     if not math.isfinite(latency_ms) or latency_ms < 0:
@@ -581,7 +574,7 @@ def replay_file(path: str | os.PathLike, preset: str = "ground", latency_ms: flo
         rec = read_capture(p, lat, clock, progress)
     except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         raise CliError(f"cannot read {p}: {exc.strerror or exc}") from exc
-    ov = with_robust_profile(robust, fix_rate_hz(rec), overrides)
+    ov = with_robust_profile(robust, core.fix_rate_hz(rec, LIVE_GPS_RATE_HZ), overrides)
     cfg, out, rep = replay_recording(rec, preset, lat, ov)
     return ReplayResult(p, rec, cfg, out, rep)
 

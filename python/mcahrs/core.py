@@ -570,6 +570,14 @@ ROWS_GUARD_S = 20.0
 estimate coasts through a fault of both before its variance lets the fault back in."""
 
 
+def fix_rate_hz(rec: Recording, default: float = 5.0) -> float:
+    """The median fix rate of a recording, the rate :func:`robust_profile` takes (``default`` with
+    fewer than two fixes at distinct times)."""
+    dt = np.diff(rec.gnss["t_us"].astype(np.int64)) * 1e-6
+    dt = dt[dt > 0]
+    return float(1.0 / np.median(dt)) if dt.size else default
+
+
 def robust_profile(name: str, gps_rate_hz: float = 5.0) -> dict[str, int]:
     """The overrides of :func:`nav_config` (dotted names) that set up robust profile ``name``.
 

@@ -468,11 +468,7 @@ def run_core(rec: Recording, preset: str, comp_mode: int, robust: str | None = N
     robust profile (``core.robust_profile``, set up for the recording's median fix rate)."""
     from mcahrs import core
 
-    over: dict[str, Any] = {}
-    if robust is not None:
-        dt = np.diff(rec.gnss["t_us"].astype(np.int64)) * 1e-6
-        dt = dt[dt > 0]
-        over = core.robust_profile(robust, float(1.0 / np.median(dt)) if dt.size else 5.0)
+    over = {} if robust is None else core.robust_profile(robust, core.fix_rate_hz(rec))
     return core.replay(rec, core.nav_config(preset, comp_mode=comp_mode, **over))
 
 
