@@ -27,16 +27,16 @@ static float lat_rad(int32_t e7)
     return (float)whole * 0.0174532925199433f + (float)frac * E7_TO_RAD;
 }
 
-/* sin and cos of a latitude (|lat| <= 90e7) to ~1 ulp: whole degrees from the table,
- * the remainder (< 1 deg) by sinf/cosf, which are accurate for a small argument. */
+/* sin and cos of a latitude (|lat| <= 90e7) to ~1e-8 rad: multiples of 10 degrees from the
+ * table, the remainder (< 10 deg) by sincosf, which is accurate for a small argument. */
 static void lat_sincos(int32_t e7, float *s, float *c)
 {
     const int32_t a = e7 < 0 ? -e7 : e7;
-    const int32_t k = a / 10000000;
-    const float f = (float)(a - k * 10000000) * E7_TO_RAD;
+    const int32_t k = a / 100000000;
+    const float f = (float)(a - k * 100000000) * E7_TO_RAD;
     float sf, cf;
     mca_sincosf(f, &sf, &cf);
-    const float sk = mca_sin_deg[k], ck = mca_sin_deg[90 - k];
+    const float sk = mca_sin_10deg[k], ck = mca_sin_10deg[9 - k];
     const float sv = sk * cf + ck * sf;
     *c = ck * cf - sk * sf;
     *s = e7 < 0 ? -sv : sv;
