@@ -302,6 +302,12 @@ RULES = ("chi2(0.005)", "FTA", "AKF", "fuzzy", "IGG-III")
 MODE_RULE = {0: "chi2(0.005)", 1: "FTA", 2: "AKF", 3: "fuzzy", 4: "IGG-III"}
 
 
+def profile_rule(mode: int, profile: str) -> str:
+    """The detection rule of a robust profile: its mode's, the fuzzy rows variant's for fuzzy-rows
+    (alarm at D >= 1, ALGORITHMS.md 5)."""
+    return "fuzzy rows" if profile == "fuzzy-rows" else MODE_RULE[mode]
+
+
 def rule_flags(rule: str, run: Run) -> np.ndarray:
     """Per-fix flag of a detection rule applied to a run's T (see the module docstring)."""
     T, m, valid = run.T, run.m, run.valid
@@ -318,8 +324,8 @@ def rule_flags(rule: str, run: Run) -> np.ndarray:
                 flags[i, axis] = t > chi2_quantile(1e-4, mi)
             elif rule == "AKF":
                 flags[i, axis] = t > chi2_quantile(1e-2, mi)
-            elif rule == "fuzzy":
-                d_k, alarm, _ = fuzzy_detector_step(d_k, alarm, t, mi)
+            elif rule in ("fuzzy", "fuzzy rows"):
+                d_k, alarm, _ = fuzzy_detector_step(d_k, alarm, t, mi, rule == "fuzzy rows")
                 flags[i, axis] = alarm
             else:
                 flags[i, axis] = t > IGG_K1**2
@@ -544,7 +550,7 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
         cfg = nav_cfg(preset, profile, cs_only, res.params.gps_rate_hz)
         clean = replay(rec, res, cfg)
         run = replay(bad, res, cfg)
-        rows.append(dict(label=label, mode=mode, clean=clean, run=run))
+        rows.append(dict(label=label, mode=mode, rule=profile_rule(mode, profile), clean=clean, run=run))
     plain_clean = rows[0]["clean"]
     e_plain = plain_clean.pos_err[plain_clean.window]
     herr_plain = np.hypot(e_plain[:, 0], e_plain[:, 1])
@@ -552,9 +558,9 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
     pos_plain = rms3(plain_clean.pos_err[plain_clean.window])
     for r in rows:
         clean, run = r["clean"], r["run"]
-        flags = rule_flags(MODE_RULE[r["mode"]], run)
+        flags = rule_flags(r["rule"], run)
         r.update(
-            **scores(clean, run, flags, rule_flags(MODE_RULE[r["mode"]], clean), faults),
+            **scores(clean, run, flags, rule_flags(r["rule"], clean), faults),
             fa_flags=flags & ~faults.faulty & run.valid,
             long=long_fault(run, bound_m, faults, flags, t_fix_s),
             refused=int(np.sum(run.out["gps_status"] != 0)),

@@ -171,7 +171,8 @@ def bench_recording(path: Path, seed: int) -> None:
     cs_runs = []
     for label, mode, profile in bo.MODES:
         cfg = core.nav_config(preset, **core.robust_profile(profile, rate_hz))
-        cs_runs.append((label, lambda r, cfg=cfg, mode=mode: cs_run(r, cfg, mode)))
+        rule = bo.profile_rule(mode, profile)
+        cs_runs.append((label, lambda r, cfg=cfg, rule=rule: cs_run(r, cfg, rule)))
     ins_runs = []
     for label, mode, extra in bo.INS_MODES:
         cfg = core.ins_config(preset, robust=mode, **{**REAL_INS, **extra})
@@ -190,11 +191,11 @@ def bench_recording(path: Path, seed: int) -> None:
     )
 
 
-def cs_run(rec: Recording, cfg: object, mode: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """The CS + gravity filter's output, and per fix whether its mode's rule flagged it."""
+def cs_run(rec: Recording, cfg: object, rule: str) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The CS + gravity filter's output, and per fix whether its profile's rule flagged it."""
     r = replay(rec, cfg)
     ns = types.SimpleNamespace(T=r.T, m=r.m, valid=r.valid)
-    return r.out, bo.rule_flags(bo.MODE_RULE[mode], ns) & r.valid
+    return r.out, bo.rule_flags(rule, ns) & r.valid
 
 
 def ins_run(rec: Recording, cfg: object, mode: str) -> tuple[dict[str, np.ndarray], np.ndarray]:

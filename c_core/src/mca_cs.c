@@ -437,7 +437,13 @@ MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float
                                              aided ? nu_t : NULL, aided ? c_t : NULL, ws, MCA_CS_WS_LEN, rep);
     if (su == MCA_OK) {
         ax->aid.valid = 0u;
-        ax->aid.out = (uint8_t)mca_robust_left_out(&ax->rs, m); /* coasting, ALGORITHMS.md 2 */
+        /* coasting (ALGORITHMS.md 2) while the velocity row is out or the update was rejected; a
+         * coast that starts at a rejected aided update starts from the IMU-aided prediction */
+        if (ax->rs.n_reject > 0u && aided && ax->aid.out == 0u && ax->cfg.coast != 0u) {
+            ax->x[0] = ax->aid.y[0] - ax->x[3];
+            ax->x[1] = ax->aid.y[1] - ax->x[4];
+        }
+        ax->aid.out = (uint8_t)(ax->rs.n_reject > 0u || ((mask & MCA_CS_VEL) != 0u && ax->rs.n_removed[m - 1u] > 0u));
     }
     return su;
 }

@@ -416,10 +416,12 @@ MCA_NOINLINE static mca_status_t cs_predict(mca_nav_t *nav, uint64_t t_fix, floa
         /* tilt error: g d theta horizontally; yaw error turns the mean horizontal acceleration */
         const float ah2 = (inc[0].dv_mps * inc[0].dv_mps + inc[1].dv_mps * inc[1].dv_mps) / (t * t);
         const float var_h = s2 + g2 * (pa[0] + pa[7]) + ah2 * pa[14];
-        /* a coasting axis (ALGORITHMS.md 2) keeps its aid once yaw was observed: the staleness is
-         * in var_h (P_att[2][2]), and without the IMU it would run on its constant acceleration */
-        const int coasting = nav->cfg.cs_h.coast != 0u && (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) != 0u;
-        const int yaw_ok = !yaw_unobserved(nav) || (coasting && nav->have_yaw_obs != 0u);
+        /* an axis leaving a row out with coasting set (ALGORITHMS.md 2) keeps its aid once yaw was
+         * observed: the staleness is in var_h (P_att[2][2]); without the IMU it would coast on its
+         * constant acceleration, or test its rows against its own lagging prediction */
+        const int rows_out = nav->cfg.cs_h.coast != 0u && (mca_robust_left_out(&nav->cs.axis[0].rs, MCA_CS_NZ) ||
+                                                           mca_robust_left_out(&nav->cs.axis[1].rs, MCA_CS_NZ));
+        const int yaw_ok = !yaw_unobserved(nav) || (rows_out && nav->have_yaw_obs != 0u);
         /* the increments of finite history entries are finite; a variance that overflowed
          * (P_att huge) leaves the fix with the CS filter's own test rather than refusing it */
         const int aid_h = yaw_ok && isfinite(var_h);
@@ -625,7 +627,8 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
 /* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
  * step 6): FTA, AKF and fuzzy when the mode detected it or its (tested) T exceeds chi2_m(0.01);
  * IGG-III, which weighs rows, when the update removed the velocity row or every row; fuzzy rows
- * (fuzzy_reject 2) when the update left any row out. Plain mode never flags. */
+ * (fuzzy_reject 2) when the axis coasts after it (the velocity row out, or rejected; a position
+ * left out while the velocity is applied keeps the CS acceleration). Plain mode never flags. */
 static int fix_flagged(const mca_nav_t *nav, uint8_t vmask)
 {
     const size_t m = (vmask & 3u) == 3u ? 2u : 1u;

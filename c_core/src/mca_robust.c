@@ -249,7 +249,8 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
     const float mu = (td1 / td3) * dom_h + 0.5f * dom_m + dom_d;
     float d = 0.5f * rs->d_k + mu; /* D_k = D_{k-1} / 2 + mu_k */
     uint8_t alarm = rs->alarm;
-    if (alarm == 0u && d > 1.0f) {
+    const int rows = rc->fuzzy_reject == 2u;
+    if (alarm == 0u && (rows ? d >= 1.0f : d > 1.0f)) { /* rows: one epoch past TD3 after a release */
         alarm = 1u;
     } else if (alarm != 0u && t_stat < td2 && d < 1.0f) {
         alarm = 0u; /* release */
@@ -259,15 +260,15 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
     pl->alarm = alarm;
     pl->detected = alarm;
     if (alarm != 0u) {
-        if (rc->fuzzy_reject == 2u) {
+        if (rows) {
             /* rows (ALGORITHMS.md 5): out go the rows whose own standardised test residual fails
-             * chi2_1(0.005) and, while any does, the rows out on the last update; none or every
-             * row failing rejects the whole update */
+             * chi2_1(0.005) and, while any does, the rows out on the last two updates; none or
+             * every row failing rejects the whole update */
             const float k2 = mca_chi2_quantile(1u, MCA_CHI2_5E3);
             unsigned out = 0u, was = 0u;
             for (size_t j = 0; j < m; ++j) {
                 out |= (unsigned)(nu[j] * nu[j] > k2 * c[j * m + j]) << j;
-                was |= (unsigned)(rs->n_reject > 0u || rs->n_removed[j] > 0u) << j;
+                was |= (unsigned)(rs->n_removed[j] > 1u) << j;
             }
             pl->keep &= ~(out != 0u ? out | was : pl->keep);
             pl->rejected = pl->keep == 0u;

@@ -196,8 +196,9 @@ class Cs3:
         self, pos_ned_m: Any, vel_ned_mps: Any, r_pos_m2: Any, r_vel_m2ps2: Any, mask: Any
     ) -> dict[str, np.ndarray]:
         """Update; returns per-axis ``m``, ``nu`` (3 x 2), ``c`` (3 x 2 x 2), ``t_stat`` (3), and
-        the robust outcome ``rejected``, ``alarm``, ``reset`` and ``left_out`` (the update left a
-        row out, ALGORITHMS.md 2, coasting) (3, bool)."""
+        the robust outcome ``rejected``, ``alarm``, ``reset`` and ``coasting`` (the update left the
+        velocity row out or was rejected: with ``coast`` set the next aided predict coasts,
+        ALGORITHMS.md 2) (3, bool)."""
         arrs = [
             _as_f32(a, (3,), n)
             for a, n in (
@@ -223,14 +224,14 @@ class Cs3:
             "nu": np.full((3, 2), np.nan),
             "c": np.full((3, 2, 2), np.nan),
             "t_stat": np.full(3, np.nan),
-            **{k: np.zeros(3, bool) for k in ("rejected", "alarm", "reset", "left_out")},
+            **{k: np.zeros(3, bool) for k in ("rejected", "alarm", "reset", "coasting")},
         }
         for i in range(3):
             r = self._rep[i]
             k = r.m
             out["m"][i] = k
             out["rejected"][i], out["alarm"][i], out["reset"][i] = r.rejected != 0, r.alarm != 0, r.reset != 0
-            out["left_out"][i] = bool(self._cs.axis[i].aid.out)
+            out["coasting"][i] = bool(self._cs.axis[i].aid.out)
             if k:
                 out["nu"][i, :k] = list(r.nu)[:k]
                 out["c"][i, :k, :k] = np.array(list(r.c)[: k * k]).reshape(k, k)

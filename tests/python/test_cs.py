@@ -445,13 +445,15 @@ def _fuzzy_rows_track(seed: int) -> tuple[np.ndarray, ...]:
 def test_fuzzy_rows_and_coasting_match_golden() -> None:
     """A CS axis with fuzzy rows (fuzzy_reject 2) and coasting (ALGORITHMS.md 2 and 5), C against
     the golden model composed of its independent pieces (aided_prior, robust_update with the test
-    innovation, predict_coasting after an update that left a row out), step by step through a
-    position fault, a fault of both and a velocity fault: the same decisions on every fix, and
-    x, P within float32 rounding of the golden ones.
+    innovation, predict_coasting after an update that left the velocity row out or was rejected,
+    the coast started from the aided prior after a rejection), step by step through a position
+    fault, a fault of both and a velocity fault: the same decisions on every fix, and x, P within
+    float32 rounding of the golden ones.
 
     It also checks what the pieces are for: the position fault is ridden out on the velocity
-    (position left out, velocity applied, the track within a few metres), and so is the fault of
-    both on the IMU; every fault fix is left out or rejected."""
+    (position left out, velocity applied, no coasting: the CS model stays a GPS maneuver
+    estimate; the track within a few metres), the fault of both on the IMU; every fault fix
+    leaves its faulty rows out."""
     from mcahrs.golden.robust import RobustConfig, RobustState, robust_update
 
     zp, zv, dp, dv, p_true, v_true = _fuzzy_rows_track(5)
@@ -465,7 +467,8 @@ def test_fuzzy_rows_and_coasting_match_golden() -> None:
     gst = RobustState()
     g_out = False
     worst_x = worst_p = 0.0
-    left_out = np.zeros(len(zp), bool)
+    coasting = np.zeros(len(zp), bool)
+    pos_out = np.zeros(len(zp), bool)
     rejected = np.zeros(len(zp), bool)
     herr = np.zeros(len(zp))
     nan3 = np.array([qa, np.nan, np.nan])
@@ -481,11 +484,14 @@ def test_fuzzy_rows_and_coasting_match_golden() -> None:
         z = np.array([zp[k], zv[k]])
         R = np.diag([rp, rv])
         g.x, g.P, grep = robust_update(g.x, g.P, H, z, R, gcfg, gst, test=(z - y, s + R))
-        g_out = bool(grep.rejected) or any(v > 0 for v in gst.n_removed[:2])
+        if grep.rejected and not g_out:  # the coast starts from the IMU-aided prediction
+            g.x[0], g.x[1] = y[0] - g.x[3], y[1] - g.x[4]
+        g_out = bool(grep.rejected) or gst.n_removed[1] > 0  # the velocity row out
         assert bool(rep["rejected"][0]) == bool(grep.rejected), k
         assert bool(rep["alarm"][0]) == bool(grep.alarm), k
-        assert bool(rep["left_out"][0]) == g_out, k
-        left_out[k], rejected[k] = g_out, bool(grep.rejected)
+        assert bool(rep["coasting"][0]) == g_out, k
+        coasting[k], rejected[k] = g_out, bool(grep.rejected)
+        pos_out[k] = bool(grep.rejected) or gst.n_removed[0] > 0
         sd = np.sqrt(np.diag(g.P))
         worst_x = max(worst_x, float(np.max(np.abs(c.x[0] - g.x) / sd)))
         worst_p = max(worst_p, float(np.max(np.abs(c.P[0] - g.P) / np.outer(sd, sd))))
@@ -493,10 +499,16 @@ def test_fuzzy_rows_and_coasting_match_golden() -> None:
     print(f"fuzzy rows + coasting, C vs golden: x {worst_x:.1e} sd, P {worst_p:.1e}")
     print(f"max |p error|: position fault {herr[100:180].max():.2f} m, both {herr[220:250].max():.2f} m")
     assert worst_x <= 1e-3 and worst_p <= 1e-3
-    assert left_out[100:180].all() and left_out[220:250].all() and left_out[290:320].all()
-    # one row out (the other applied) through the single-block faults, both out through the other
-    assert not rejected[101:180].any() and not rejected[291:320].any() and rejected[221:250].all()
-    assert not left_out[:100].any()  # nothing wrong, nothing left out
+    coast_pf = np.flatnonzero(coasting[101:180])
+    print(f"coasting fixes in the position fault: {coast_pf + 101}")
+    # the position out through its fault, the velocity applied: no coasting but where a clean
+    # velocity failed its own test by chance (0.5 % a row), and never two fixes in a row (a row
+    # left out once does not stay out)
+    assert pos_out[100:180].all() and coast_pf.size <= 2 and not np.any(np.diff(coast_pf) == 1)
+    assert coasting[220:250].all() and coasting[290:320].all()  # the velocity out: coasting
+    # both out through the fault of both; one row out (the other applied) through the velocity fault
+    assert rejected[221:250].all() and not rejected[291:320].any()
+    assert not pos_out[:100].any()  # nothing wrong, nothing left out
     assert herr[100:180].max() < 5.0 and herr[220:250].max() < 5.0
 
 

@@ -384,9 +384,35 @@ def test_fuzzy_rows_long_guard_holds_only_with_a_test_innovation() -> None:
                 first_reset = k
                 assert xn[0] > 50.0 and xn[1] > 25.0  # the plain update
                 break
-            assert k == 1 or (rep.rejected and np.array_equal(xn, x))
-        # update 1 is plain (D = 1, no alarm yet), then rejections: the default guard's fifth is update 6
-        assert first_reset == (None if tested else 6)
+            assert rep.rejected and np.array_equal(xn, x)
+        # every update rejected (fuzzy rows alarm at D = 1): the default guard's fifth is update 5
+        assert first_reset == (None if tested else 5)
+
+
+def test_fuzzy_rows_alarm_at_d_one_and_keep_a_row_out_after_two_updates() -> None:
+    """ALGORITHMS.md 5, fuzzy rows, two independent rows (H = I, P = I, R = 0.1 I): one epoch past
+    TD3 from D = 0 alarms (D = 1; the reject variant waits for a second, the paper's rule); while
+    alarmed the failing row is left out and the other applied; a row out on the last two updates
+    stays out while another fails, a row out on one only comes back."""
+    H, R, P = np.eye(2), np.diag([0.1, 0.1]), np.eye(2)
+    far, both = np.array([100.0, 0.1]), np.array([100.0, 50.0])
+    st_rej = RobustState()
+    _, _, rep = robust_update(np.zeros(2), P, H, far, R, RobustConfig("fuzzy"), st_rej)
+    assert not rep.alarm and st_rej.d_k == pytest.approx(1.0)
+    cfg = RobustConfig("fuzzy", fuzzy_reject=2)
+    st = RobustState()
+    # z; then alarm, rejected, x[0] / x[1] moved
+    steps = [
+        (far, True, False, False, True),  # D = 1: alarm; row 0 out, row 1 applied
+        (both, True, True, False, False),  # both fail: rejected
+        (far, True, False, False, True),  # row 1 passes, out on one update only: applied
+        (both, True, True, False, False),
+        (both, True, True, False, False),  # row 1 out on two updates in a row
+        (far, True, True, False, False),  # row 1 passes but stays out while row 0 fails
+    ]
+    for k, (z, alarm, rejected, moved0, moved1) in enumerate(steps):
+        xn, _, rep = robust_update(np.zeros(2), P, H, z, R, cfg, st)
+        assert (rep.alarm, rep.rejected, xn[0] != 0.0, xn[1] != 0.0) == (alarm, rejected, moved0, moved1), k
 
 
 # --------------------------------------------------------------------------------------

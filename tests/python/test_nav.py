@@ -583,3 +583,37 @@ def test_fuzzy_rows_ride_out_a_position_fault_and_a_fault_of_both() -> None:
     assert dev["fuzzy"][pos_sel].max() > 15.0  # the contrast: fuzzy-reject follows the fault
     assert dev["rows"][both_and_after].max() < 25.0 and dev["rows"][settled].max() < 5.0
     assert rp["rows"] < 1.2
+
+
+def test_fuzzy_rows_keep_observing_roll_pitch_through_a_position_fault() -> None:
+    """Fuzzy rows (ALGORITHMS.md 2 coasting, 5, 8 GPS steps 3 and 6), simulated car braking and
+    accelerating: through a 60 s, 30 m position fault the CS axes leave the position out and keep
+    the GPS velocity, without coasting, so their acceleration stays a GPS maneuver estimate and
+    the fixes keep giving roll/pitch observations (before, a left-out position flagged the fix
+    and the tilt ran on the gyro for the whole fault). The axes keep their IMU-aided test while
+    a row is out: the position stays within 5 m of the outlier-free run, the velocity within
+    0.1 m/s RMS (a clean fix the alarm's release rule still holds out costs up to 1.5 m/s for a
+    fix in the car's 7.5 m/s^2 braking), and roll/pitch within 1.2x of the outlier-free run over
+    the fault."""
+    res = scenario("car_accel_brake", seed=2, duration_s=300.0)
+    rec = res.recording
+    bad, sel = _with_gnss_fault(rec, 120.0, 180.0, (-21.2, 21.2), (0.0, 0.0))
+    cfg = core.nav_config("ground", **core.robust_profile("fuzzy-rows", res.params.gps_rate_hz))
+    clean, run = core.replay(rec, cfg), core.replay(bad, cfg)
+    t = run["t_us"] * 1e-6
+    w = (t >= 120.0) & (t < 190.0)
+    obs = [int(o["n_grav_obs"][w][-1] - o["n_grav_obs"][w][0]) for o in (run, clean)]
+    dp = run["pos_ned_m"][w, :2].astype(np.float64) - clean["pos_ned_m"][w, :2]
+    dv = run["vel_ned_mps"][w, :2].astype(np.float64) - clean["vel_ned_mps"][w, :2]
+    q = res.truth.euler_rad[w, :2]
+    rp = [float(np.sqrt(np.mean(np.degrees(o["euler_rad"][w, :2] - q) ** 2))) for o in (run, clean)]
+    dp_max = float(np.hypot(dp[:, 0], dp[:, 1]).max())
+    dv_rms = float(np.sqrt(np.mean(np.sum(dv * dv, axis=1))))
+    print(
+        f"fault + 10 s: roll/pitch observations {obs[0]} (outlier-free {obs[1]}); position off "
+        f"{dp_max:.2f} m at most, velocity {dv_rms:.3f} m/s RMS; roll/pitch RMS {rp[0]:.3f} deg "
+        f"(outlier-free {rp[1]:.3f})"
+    )
+    assert obs[0] >= 0.9 * obs[1]
+    assert dp_max < 5.0 and dv_rms < 0.1
+    assert rp[0] <= 1.2 * rp[1]

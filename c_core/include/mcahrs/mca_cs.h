@@ -40,8 +40,10 @@ typedef struct {
     float a0_var_m2ps4;     /**< initial acceleration variance, > 0 */
     float dt_max_s;         /**< longest accepted predict step, > 0 */
     uint8_t adaptive;       /**< 0 fixed sigma_a0, 1 current-statistical adaptive */
-    uint8_t coast;          /**< 1: after an update that left a row out (robust modes), an IMU-aided
-                                 predict moves p and v with the IMU increments (coasting) */
+    uint8_t coast;          /**< 1: after an update that left the velocity row out or was rejected
+                                 (robust modes), an IMU-aided predict moves p and v with the IMU
+                                 increments (coasting), from the aided prediction when the coast
+                                 starts at a rejection */
     mca_robust_config_t robust; /**< robust/adaptive mode of the GPS updates */
 } mca_cs_config_t;
 
@@ -56,8 +58,8 @@ typedef struct {
     float s[MCA_CS_NZ * MCA_CS_NZ];  /**< its covariance without R, row-major */
     uint8_t valid;                   /**< set by an aided predict, cleared by any other predict and by
                                           the update that uses it */
-    uint8_t out;                     /**< the last update left a row out (rejected, or a row removed:
-                                          mca_robust_left_out); with cfg.coast the next aided predict
+    uint8_t out;                     /**< the last update left the velocity row out (rejected, or
+                                          the row removed); with cfg.coast the next aided predict
                                           coasts */
 } mca_cs_aid_t;
 
@@ -119,7 +121,7 @@ mca_status_t mca_cs_axis_predict(mca_cs_axis_t *ax, float t_s);
  * v + dv + e_g eps_v], s = G P G^T + diag(sigma_p^2 (1 - e_b^2), sigma_v^2 (1 - e_g^2)) +
  * acc_var [[t^4/4, t^3/2], [t^3/2, t^2]], G = [[1, t, 0, e_b, 0], [0, 1, 0, 0, e_g]],
  * e_b = exp(-beta t), e_g = exp(-gamma t). inc NULL: mca_cs_axis_predict.
- * With cfg.coast and aid.out set (the last update left a row out) the predict coasts
+ * With cfg.coast and aid.out set (the last update left the velocity row out) the predict coasts
  * (docs/ALGORITHMS.md 2, coasting): p += v t + dp, v += dv, a kept, the covariance without the
  * p-a and v-a couplings plus acc_var [[t^4/4, t^3/2], [t^3/2, t^2]] on (p, v).
  * Cost: the predict plus ~40 multiply-adds (e_b, e_g and the Gauss-Markov Q come from the

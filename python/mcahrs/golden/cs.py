@@ -282,7 +282,7 @@ class CsAxisConfig:
     v0_var_m2s2: float = 1.0  # initial variance of v
     a0_var_m2s4: float = 1.0  # initial variance of a
     dt_max_s: float = 10.0  # longest accepted predict step
-    coast: bool = False  # coast on the IMU after an update that left a row out (predict_coasting)
+    coast: bool = False  # coast on the IMU after an update that left the velocity row out (predict_coasting)
 
     @classmethod
     def horizontal(cls) -> CsAxisConfig:

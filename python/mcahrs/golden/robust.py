@@ -391,18 +391,22 @@ def fuzzy_mu(T: float, m: int) -> float:
     return (td1 / td3) * dom_h + 0.5 * dom_m + 1.0 * dom_d
 
 
-def fuzzy_detector_step(d_prev: float, alarm_prev: bool, T: float, m: int) -> tuple[float, bool, float]:
+def fuzzy_detector_step(
+    d_prev: float, alarm_prev: bool, T: float, m: int, rows: bool = False
+) -> tuple[float, bool, float]:
     """Eq. 12 and the alarm rules of paper 001 section 2.2. Returns (D_k, alarm, mu_k).
 
     D_k = D_{k-1} / 2 + mu_k. No alarm and D_k > 1: alarm. Alarm, T < TD2 and D_k < 1:
     release and D_k = 0. (From D = 0, two consecutive T > TD3 give D = 1 then 1.5: alarm on
     the second, as the paper states; after clean epochs D ~ 2 a_H, so one T > TD3 alarms.)
+    ``rows`` (the fuzzy rows variant, ALGORITHMS.md 5): alarm at D_k >= 1, so that one T past
+    TD3 right after a release (D = 0) alarms too.
     """
     _, td2, _ = fuzzy_thresholds(m)
     mu = fuzzy_mu(T, m)
     d = d_prev / 2.0 + mu
     alarm = bool(alarm_prev)
-    if not alarm and d > 1.0:
+    if not alarm and (d >= 1.0 if rows else d > 1.0):
         alarm = True
     elif alarm and T < td2 and d < 1.0:
         alarm = False
@@ -646,11 +650,12 @@ def _update_akf(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
 
 def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
     """Mode 3, paper 001: test first, then reject / inflate while alarmed, else section 1."""
-    memory.d_k, memory.alarm, _ = fuzzy_detector_step(memory.d_k, memory.alarm, step.T, step.m)
+    rows = cfg.fuzzy_reject == FUZZY_ROWS
+    memory.d_k, memory.alarm, _ = fuzzy_detector_step(memory.d_k, memory.alarm, step.T, step.m, rows)
     if not memory.alarm:
         x, P = _gain_update(step.x, step.P, step.H, step.nu, step.C, step.R)
         return x, P, _outcome(step.m)
-    if cfg.fuzzy_reject == FUZZY_ROWS:
+    if rows:
         return _fuzzy_rows(step, memory)
     if cfg.fuzzy_reject:
         return step.x, step.P, _outcome(step.m, detected=True, rejected=True, alarm=True)
@@ -662,14 +667,16 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
 
 def _fuzzy_rows(step: _Step, memory: RobustState) -> _Result:
     """Fuzzy rows while alarmed (ALGORITHMS.md 5): a row fails when its own standardised test
-    residual, nu_t,i^2 / C_t,ii, exceeds chi2_1(0.005); while any row fails, the rows the last
-    update left out (it was rejected, or they were removed) stay out too. The other rows make a
-    section-1 update; no row or every row failing rejects the update. The report's w stays 1."""
+    residual, nu_t,i^2 / C_t,ii, exceeds chi2_1(0.005); while any row fails, the rows the last two
+    updates left out (rejected, or removed) stay out too: one failure by chance (0.5 % of clean
+    rows) does not keep a row out. The other rows make a section-1 update; no row or every row
+    failing rejects the update. The report's w stays 1."""
     m = step.m
     k2 = chi2_quantile(FUZZY_TD2_ALPHA, 1)
     fails = [float(step.nu_test[i]) ** 2 > k2 * float(step.C_test[i, i]) for i in range(m)]
     if any(fails):
-        were_out = [memory.n_reject > 0 or memory.n_removed[i] > 0 for i in range(m)]
+        # n_removed counts the updates in a row that left row i out (a rejection leaves every row out)
+        were_out = [memory.n_removed[i] > 1 for i in range(m)]
         out = [f or w for f, w in zip(fails, were_out, strict=True)]
     else:
         out = [True] * m  # the joint test alone: nothing to single out
