@@ -78,7 +78,8 @@ SCENARIOS = {
 }
 # (label, mca_robust_config_t.mode, robust profile: core.robust_profile, the set-ups a user selects
 # with `mcahrs replay --robust`). fuzzy-rows: the rows that fail their own test are left out
-# (ALGORITHMS.md 5) with the CS filters coasting on the IMU while a row is out (ALGORITHMS.md 2); its
+# (ALGORITHMS.md 5) with the CS filters coasting on the IMU while the velocity row is out
+# (ALGORITHMS.md 2); its
 # lock-up guard 20 s of whole rejections in a row (100 at 5 Hz: how long the CS filter coasts on an
 # IMU it has no bias estimate for), no row guard (a position left out while the velocity is
 # applied does not run open loop; the row guard would let the 100 s fault in after 10 s).

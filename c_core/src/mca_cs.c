@@ -279,8 +279,8 @@ static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float 
     if (inc != NULL) {
         axis_aid(ax, t, phi, q1, inc); /* from the posterior, before it is predicted */
     }
-    /* coasting (ALGORITHMS.md 2): after an update that left a row out, p and v follow the IMU
-     * increments instead of the acceleration state, and P takes the IMU's error variance va */
+    /* coasting (ALGORITHMS.md 2): after an update that left the velocity row out, p and v follow
+     * the IMU increments instead of the acceleration state, and P takes the IMU's error variance va */
     const int coast = inc != NULL && ax->cfg.coast != 0u && ax->aid.out != 0u;
     /* mean: eq. 17, Phi1 = constant acceleration + Gauss-Markov decay of eps */
     const float a = ax->x[2];

@@ -586,7 +586,7 @@ def robust_profile(name: str, gps_rate_hz: float = 5.0) -> dict[str, int]:
       (``docs/ALGORITHMS.md`` 5), on the CS axes and the attitude filter.
     * ``fuzzy-inflate``: the fuzzy detector inflating instead of rejecting (``fuzzy_reject`` 0).
     * ``fuzzy-rows``: the CS axes leave out only the rows that fail their own test and coast on the
-      IMU while a row is out (``fuzzy_reject`` 2, ``coast`` 1), with the whole-update guard at
+      IMU while the velocity row is out (``fuzzy_reject`` 2, ``coast`` 1), with the whole-update guard at
       :data:`ROWS_GUARD_S` of fixes at ``gps_rate_hz`` (at most 254) and no row guard; the attitude
       filter's one gravity observation takes the fuzzy default, reject.
 
