@@ -1,5 +1,6 @@
 /* Host tests of mca_cs that need no golden model: bad input leaves the state unchanged and
  * finite, the series/exact switch is continuous, P stays symmetric positive definite. */
+#include <math.h>
 #include <string.h>
 
 #include "mca_test.h"
@@ -187,6 +188,65 @@ static void test_coasting_predict(void)
     CHECK(memcmp(noinc.x, ref.x, sizeof ref.x) == 0 && memcmp(noinc.p, ref.p, sizeof ref.p) == 0);
 }
 
+/* Which updates start a coast (ALGORITHMS.md 2, coasting; fuzzy rows, ALGORITHMS.md 5): a
+ * position left out while the velocity is applied does not; a rejected update does, and the
+ * coast starts from the IMU-aided prediction, not the acceleration state's; a velocity out on
+ * one update only comes back while the position still fails, and the coast ends. */
+static void test_coast_starts_when_the_velocity_is_out(void)
+{
+    mca_cs_config_t h;
+    mca_cs_config_default_h(&h);
+    h.coast = 1u;
+    h.robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
+    h.robust.fuzzy_reject = 2u;
+    h.robust.reject_reset_n = 100u;
+    h.robust.row_reset_n = 0u;
+    CHECK_EQ_INT(mca_cs_config_check(&h), MCA_OK);
+    mca_cs_axis_t ax;
+    CHECK_EQ_INT(mca_cs_axis_init(&ax, &h, 0.0f, 5.0f), MCA_OK);
+    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f}; /* the IMU: no acceleration */
+    const float t = 0.2f;
+    float ws[MCA_CS_WS_LEN];
+    mca_update_report_t rep;
+    size_t n = 0u; /* fixes so far, 5 m/s on a straight line */
+    for (; n < 30u; ++n) { /* converge on clean fixes first */
+        CHECK_EQ_INT(mca_cs_axis_predict_aided(&ax, t, &inc), MCA_OK);
+        CHECK_EQ_INT(mca_cs_axis_update(&ax, 5.0f * t * (float)(n + 1u), 5.0f, 1.0f, 0.01f,
+                                        MCA_CS_POS | MCA_CS_VEL, ws, &rep),
+                     MCA_OK);
+        CHECK_EQ_INT(rep.alarm, 0);
+    }
+    /* z_p offset, z_v offset; then rejected, coasting after the update */
+    const struct {
+        float dp, dv;
+        int rejected, coasting;
+    } steps[] = {
+        {50.0f, 0.0f, 0, 0},  /* alarm (D = 1): position out, velocity applied, no coast */
+        {50.0f, 5.0f, 1, 1},  /* both fail: rejected, the coast starts */
+        {50.0f, 0.0f, 0, 0},  /* the velocity, out once, passes and is applied: the coast ends */
+    };
+    for (size_t k = 0; k < sizeof steps / sizeof steps[0]; ++k) {
+        ax.x[2] = 2.0f; /* an acceleration the IMU does not see */
+        const int coasted = ax.aid.out != 0u;
+        CHECK_EQ_INT(mca_cs_axis_predict_aided(&ax, t, &inc), MCA_OK);
+        const float v_prior = ax.x[1];             /* the predict's: the CS model's unless coasting */
+        const float v_imu = ax.aid.y[1] - ax.x[4]; /* the IMU-aided prediction */
+        CHECK(coasted ? v_prior == v_imu : v_prior - v_imu > 0.3f);
+        const float p_true = 5.0f * t * (float)(++n);
+        CHECK_EQ_INT(mca_cs_axis_update(&ax, p_true + steps[k].dp, 5.0f + steps[k].dv, 1.0f, 0.01f,
+                                        MCA_CS_POS | MCA_CS_VEL, ws, &rep),
+                     MCA_OK);
+        CHECK_EQ_INT(rep.alarm, 1);
+        CHECK_EQ_INT(rep.rejected, steps[k].rejected);
+        CHECK_EQ_INT(ax.aid.out, steps[k].coasting);
+        if (steps[k].rejected) {
+            CHECK(ax.x[1] == v_imu); /* the coast starts from the aided prediction */
+        } else {
+            CHECK(fabsf(ax.x[1] - 5.0f) < 0.5f * fabsf(v_prior - 5.0f)); /* the velocity applied */
+        }
+    }
+}
+
 int main(void)
 {
     test_shared_ne_update_same_bits();
@@ -194,5 +254,6 @@ int main(void)
     test_series_switch_continuous();
     test_long_run_stays_spd();
     test_coasting_predict();
+    test_coast_starts_when_the_velocity_is_out();
     TEST_MAIN_END();
 }
