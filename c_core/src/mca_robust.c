@@ -263,14 +263,19 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
         if (rows) {
             /* rows (ALGORITHMS.md 5): out go the rows whose own standardised test residual fails
              * chi2_1(0.005) and, while any does, the rows out on the last two updates; none or
-             * every row failing rejects the whole update */
+             * every row failing rejects the whole update. At the alarm's first epoch after an
+             * applied one past TD2 (D_{k-1} >= 0.5), a row whose innovation has the opposite sign
+             * of that epoch's is the return from the outlier it took in: applied. */
             const float k2 = mca_chi2_quantile(1u, MCA_CHI2_5E3);
-            unsigned out = 0u, was = 0u;
+            const int onset = rs->alarm == 0u && rs->d_k >= 0.5f;
+            unsigned fail = 0u, back = 0u, was = 0u;
             for (size_t j = 0; j < m; ++j) {
-                out |= (unsigned)(nu[j] * nu[j] > k2 * c[j * m + j]) << j;
+                fail |= (unsigned)(nu[j] * nu[j] > k2 * c[j * m + j]) << j;
+                back |= (unsigned)(onset && nu[j] * rs->nu_mean[j] < 0.0f) << j;
                 was |= (unsigned)(rs->n_removed[j] > 1u) << j;
             }
-            pl->keep &= ~(out != 0u ? out | was : pl->keep);
+            const unsigned out = fail & ~back;
+            pl->keep &= ~(fail == 0u ? pl->keep : out != 0u ? out | was : 0u);
             pl->rejected = pl->keep == 0u;
         } else if (rc->fuzzy_reject != 0u) {
             pl->rejected = 1;
@@ -1119,6 +1124,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     } else if (mode == MCA_ROBUST_FUZZY) {
         rs->d_k = pl.d_k;
         rs->alarm = pl.alarm;
+        mca_copyf(rs->nu_mean, nu_m, m); /* the last tested innovation (fuzzy rows' return rule) */
     }
     if (rs != NULL && !reset) {
         rs->n_reject = pl.rejected ? (uint8_t)(rs->n_reject < 254u ? rs->n_reject + 1u : 254u) : 0u;

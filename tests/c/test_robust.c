@@ -1051,6 +1051,46 @@ static void test_fuzzy_rows_long_guard_needs_a_test_innovation(void)
     }
 }
 
+/* Fuzzy rows' return rule (ALGORITHMS.md 5): at the alarm's first epoch after an applied epoch
+ * past TD2, a failing row whose innovation has the opposite sign of that epoch's is the return
+ * from the outlier that epoch took in and is applied; with the same sign it is left out. Two
+ * independent rows (H = I, P = I, R = 0.1 I), x and P afresh each update, the memory kept. */
+static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
+{
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_FUZZY);
+    rc.fuzzy_reject = 2u;
+    mca_robust_state_t rs;
+    mca_robust_state_init(&rs);
+    mca_update_report_t rep;
+    const float h[4] = {1.0f, 0.0f, 0.0f, 1.0f}, r[4] = {0.1f, 0.0f, 0.0f, 0.1f};
+    float x[2], p[4];
+    const float quiet[2] = {0.1f, 0.1f}, spike[2] = {8.0f, 0.0f};
+    for (int k = 0; k < 6; ++k) { /* D settles near 2 TD1 / TD3 */
+        x[0] = x[1] = 0.0f;
+        eye(p, 2, 1.0f);
+        CHECK_EQ_INT(mca_kf_update(x, p, 2, h, quiet, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
+    }
+    x[0] = x[1] = 0.0f;
+    eye(p, 2, 1.0f);
+    /* T = 58 (TD2 10.6 < T < TD3 106): D = 0.82, no alarm, taken in */
+    CHECK_EQ_INT(mca_kf_update(x, p, 2, h, spike, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
+    CHECK_EQ_INT(rep.alarm, 0);
+    CHECK(x[0] > 5.0f && rs.d_k > 0.5f && rs.d_k < 1.0f);
+    for (int sign = -1; sign <= 1; sign += 2) {
+        mca_robust_state_t rs2 = rs;
+        x[0] = x[1] = 0.0f;
+        eye(p, 2, 1.0f);
+        const float z[2] = {8.0f * (float)sign, 0.1f}; /* row 0 fails alone (T_0 = 58) */
+        CHECK_EQ_INT(mca_kf_update(x, p, 2, h, z, r, 2, &rc, &rs2, g_ws, WS_MAX, &rep), MCA_OK);
+        CHECK_EQ_INT(rep.alarm, 1);
+        CHECK_EQ_INT(rep.rejected, 0);
+        CHECK(x[1] != 0.0f);                         /* row 1 applied either way */
+        CHECK_EQ_INT(x[0] != 0.0f, sign < 0);         /* row 0: applied when it returns */
+        CHECK_EQ_INT(rs2.n_removed[0] > 0u, sign > 0);
+    }
+}
+
 int main(void)
 {
     test_chi2_table_matches_closed_form();
@@ -1067,5 +1107,6 @@ int main(void)
     test_plain_gains_and_test_stat();
     test_fuzzy_rows_leave_out_the_failing_row();
     test_fuzzy_rows_long_guard_needs_a_test_innovation();
+    test_fuzzy_rows_apply_the_return_from_a_spike();
     TEST_MAIN_END();
 }

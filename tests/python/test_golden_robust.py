@@ -560,3 +560,21 @@ def test_inputs_are_not_modified_and_outputs_do_not_alias_them() -> None:
         xn[0] += 1.0
         Pn[0, 0] += 1.0
         assert np.array_equal(x, snapshot[0]) and np.array_equal(P, snapshot[1]), mode
+
+
+def test_fuzzy_rows_apply_the_return_from_a_spike() -> None:
+    """ALGORITHMS.md 5, fuzzy rows' return rule: at the alarm's first epoch after an applied epoch
+    past TD2, a failing row whose tested innovation has the opposite sign of that epoch's is the
+    return from the outlier it took in, and is applied; with the same sign it is left out."""
+    H, R, P = np.eye(2), np.diag([0.1, 0.1]), np.eye(2)
+    cfg = RobustConfig("fuzzy", fuzzy_reject=2)
+    st = RobustState()
+    for _ in range(6):  # D settles near 2 TD1 / TD3
+        robust_update(np.zeros(2), P, H, np.array([0.1, 0.1]), R, cfg, st)
+    xn, _, rep = robust_update(np.zeros(2), P, H, np.array([8.0, 0.0]), R, cfg, st)
+    assert not rep.alarm and xn[0] > 5.0 and 0.5 < st.d_k < 1.0  # T = 58: taken in
+    for sign in (-1.0, 1.0):
+        st2 = copy.deepcopy(st)
+        xn, _, rep = robust_update(np.zeros(2), P, H, np.array([8.0 * sign, 0.1]), R, cfg, st2)
+        assert rep.alarm and not rep.rejected and xn[1] != 0.0
+        assert (xn[0] != 0.0) == (sign < 0) and (st2.n_removed[0] > 0) == (sign > 0)

@@ -55,7 +55,8 @@ typedef struct {
 typedef struct {
     float win[MCA_AKF_WINDOW];     /**< AKF: ring of the last values of nu^T nu - tr(R) (always
                                         MCA_AKF_WINDOW slots; the mean reads the last akf_window) */
-    float nu_mean[MCA_MEAS_MAX];   /**< AKF: running innovation mean per row */
+    float nu_mean[MCA_MEAS_MAX];   /**< AKF: running innovation mean per row; fuzzy: the last tested
+                                        innovation per row (read by fuzzy rows' return rule) */
     float nu_var[MCA_MEAS_MAX];    /**< AKF: running innovation variance per row */
     float q_scale;                 /**< factor the owner applies to its Q at the next predict */
     float d_k;                     /**< fuzzy: exponentially weighted membership D_k */
@@ -113,8 +114,8 @@ mca_status_t mca_robust_config_check(const mca_robust_config_t *cfg);
  * Empty memory: q_scale 1, D_k 0, no alarm, empty AKF window, zero row statistics.
  * Cost: a memset. Cannot fail (st must not be NULL). A filter that switches its mode at run
  * time should call it: a mode only reads and writes the fields it owns (AKF: win, nu_mean,
- * nu_var, q_scale, win_n, win_head, started; fuzzy: d_k, alarm), so a q_scale left by AKF
- * would otherwise keep scaling Q after a switch to another mode.
+ * nu_var, q_scale, win_n, win_head, started; fuzzy: d_k, alarm, nu_mean), so a q_scale left by
+ * AKF would otherwise keep scaling Q after a switch to another mode.
  */
 void mca_robust_state_init(mca_robust_state_t *st);
 

@@ -237,7 +237,8 @@ class RobustState:
     """Memory of one filter's robust update (``mca_robust_state_t``), changed in place.
 
     win: the last ``akf_window`` values of ``e = nu^T nu - tr(R)`` (oldest first);
-    nu_mean, nu_var: per-row running innovation mean r_i and variance s_i (AKF, M_MAX rows);
+    nu_mean, nu_var: per-row running innovation mean r_i and variance s_i (AKF, M_MAX rows); in
+    the fuzzy mode nu_mean holds the last tested innovation (fuzzy rows' return rule);
     q_scale: the AKF process-noise scale the filter applies at its next predict;
     d_k: the fuzzy detector's smoothed statistic D; alarm: the fuzzy alarm;
     started: the AKF row statistics have seen their first update.
@@ -651,12 +652,16 @@ def _update_akf(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
 def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
     """Mode 3, paper 001: test first, then reject / inflate while alarmed, else section 1."""
     rows = cfg.fuzzy_reject == FUZZY_ROWS
+    # the return rule of fuzzy rows reads the epoch before: its D, alarm and tested innovation
+    onset = not memory.alarm and memory.d_k >= 0.5
+    nu_prev = np.array(memory.nu_mean[: step.m], dtype=np.float64)
     memory.d_k, memory.alarm, _ = fuzzy_detector_step(memory.d_k, memory.alarm, step.T, step.m, rows)
+    memory.nu_mean[: step.m] = step.nu_test  # the last tested innovation (read by fuzzy rows)
     if not memory.alarm:
         x, P = _gain_update(step.x, step.P, step.H, step.nu, step.C, step.R)
         return x, P, _outcome(step.m)
     if rows:
-        return _fuzzy_rows(step, memory)
+        return _fuzzy_rows(step, memory, nu_prev if onset else None)
     if cfg.fuzzy_reject:
         return step.x, step.P, _outcome(step.m, detected=True, rejected=True, alarm=True)
     _, td2, _ = fuzzy_thresholds(step.m)
@@ -665,21 +670,30 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
     return x, P, _outcome(step.m, factor=gamma, detected=True, alarm=True)
 
 
-def _fuzzy_rows(step: _Step, memory: RobustState) -> _Result:
+def _fuzzy_rows(step: _Step, memory: RobustState, nu_prev: np.ndarray | None) -> _Result:
     """Fuzzy rows while alarmed (ALGORITHMS.md 5): a row fails when its own standardised test
     residual, nu_t,i^2 / C_t,ii, exceeds chi2_1(0.005); while any row fails, the rows the last two
     updates left out (rejected, or removed) stay out too: one failure by chance (0.5 % of clean
     rows) does not keep a row out. The other rows make a section-1 update; no row or every row
-    failing rejects the update. The report's w stays 1."""
+    failing rejects the update. The report's w stays 1.
+
+    ``nu_prev``: at the alarm's first epoch after an applied epoch past TD2 (D_{k-1} >= 0.5), that
+    epoch's tested innovation; a row whose innovation has the opposite sign is the return from
+    the outlier that epoch took in: it does not count as failing (if only such rows fail, the
+    update takes every row)."""
     m = step.m
     k2 = chi2_quantile(FUZZY_TD2_ALPHA, 1)
+    back = [nu_prev is not None and float(step.nu_test[i]) * float(nu_prev[i]) < 0.0 for i in range(m)]
     fails = [float(step.nu_test[i]) ** 2 > k2 * float(step.C_test[i, i]) for i in range(m)]
-    if any(fails):
+    bad = [f and not b for f, b in zip(fails, back, strict=True)]
+    if not any(fails):
+        out = [True] * m  # the joint test alone: nothing to single out
+    elif any(bad):
         # n_removed counts the updates in a row that left row i out (a rejection leaves every row out)
         were_out = [memory.n_removed[i] > 1 for i in range(m)]
-        out = [f or w for f, w in zip(fails, were_out, strict=True)]
+        out = [f or w for f, w in zip(bad, were_out, strict=True)]
     else:
-        out = [True] * m  # the joint test alone: nothing to single out
+        out = [False] * m  # only returns fail: the update takes every row
     kept = [i for i in range(m) if not out[i]]
     if not kept:
         everything = (True,) * m
