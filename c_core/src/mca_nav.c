@@ -626,21 +626,20 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
 
 /* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
  * step 6): FTA, AKF and fuzzy when the mode detected it or its (tested) T exceeds chi2_m(0.01);
- * IGG-III, which weighs rows, when the update removed the velocity row or every row; fuzzy rows
- * (fuzzy_reject 2) when the axis coasts after it (the velocity row out, or rejected; a position
- * left out while the velocity is applied keeps the CS acceleration). Plain mode never flags. */
+ * IGG-III, which weighs rows, and fuzzy rows (fuzzy_reject 2) when the update left the velocity
+ * row out or was rejected (the axis' aid.out, which mca_cs keeps for coasting; a position left
+ * out while the velocity is applied keeps the CS acceleration). Plain mode never flags. */
 static int fix_flagged(const mca_nav_t *nav, uint8_t vmask)
 {
     const size_t m = (vmask & 3u) == 3u ? 2u : 1u;
     for (size_t i = 0; i < 2u; ++i) {
         const mca_cs_axis_t *ax = &nav->cs.axis[i];
         const uint8_t mode = ax->cfg.robust.mode;
-        const int rows = mode == (uint8_t)MCA_ROBUST_FUZZY && ax->cfg.robust.fuzzy_reject == 2u;
-        const int flagged = rows ? ax->aid.out != 0u
-                            : mode == (uint8_t)MCA_ROBUST_IGG3
-                                ? ax->rs.n_reject > 0u || (m == 2u && ax->rs.n_removed[1] > 0u)
-                                : mode != (uint8_t)MCA_ROBUST_PLAIN &&
-                                      (ax->rs.detected != 0u || ax->rs.t_stat > mca_chi2_quantile(m, MCA_CHI2_1E2));
+        const int by_rows = mode == (uint8_t)MCA_ROBUST_IGG3 ||
+                            (mode == (uint8_t)MCA_ROBUST_FUZZY && ax->cfg.robust.fuzzy_reject == 2u);
+        const int flagged = by_rows ? ax->aid.out != 0u
+                                    : mode != (uint8_t)MCA_ROBUST_PLAIN &&
+                                          (ax->rs.detected != 0u || ax->rs.t_stat > mca_chi2_quantile(m, MCA_CHI2_1E2));
         if (flagged) {
             return 1;
         }
