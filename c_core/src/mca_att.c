@@ -2,6 +2,7 @@
 #include "mcahrs/mca_att.h"
 #include "mca_att_nocheck.h"
 #include "mca_cold.h"
+#include "mca_defaults.h"
 #include "mca_kf_rows.h"
 
 #include <math.h>
@@ -12,15 +13,8 @@
 
 MCA_COLD void mca_att_config_default(mca_att_config_t *cfg)
 {
-    cfg->gyro_noise_rps = 3e-3f;
-    cfg->gyro_bias_rw_rps2 = 1e-4f;
-    cfg->att0_var_rad2 = (2.0f * DEG) * (2.0f * DEG);
-    cfg->yaw0_var_rad2 = (180.0f * DEG) * (180.0f * DEG);
-    cfg->bias0_var_rps2 = (0.5f * DEG) * (0.5f * DEG);
-    cfg->rp_sigma0_rad = 0.03f;
-    cfg->rp_k_dev = 1.0f;
-    cfg->max_tilt_obs_rad = 80.0f * DEG;
-    mca_robust_config_default(&cfg->robust);
+    static const mca_att_config_t d = MCA_ATT_CONFIG_INIT((180.0f * DEG) * (180.0f * DEG));
+    mca_copy_bytes(cfg, &d, sizeof d);
 }
 
 MCA_COLD mca_status_t mca_att_config_check(const mca_att_config_t *c)

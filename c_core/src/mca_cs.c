@@ -1,6 +1,7 @@
 /* Current-statistical maneuver filter (DESIGN.md 3, docs/ALGORITHMS.md 2-3). See mca_cs.h. */
 #include "mcahrs/mca_cs.h"
 #include "mca_cold.h"
+#include "mca_defaults.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -12,30 +13,14 @@
 
 MCA_COLD void mca_cs_config_default_h(mca_cs_config_t *cfg)
 {
-    cfg->tau_a_s = 2.0f;
-    cfg->tau_p_s = 60.0f;
-    cfg->tau_v_s = 5.0f;
-    cfg->sigma_p_m = 1.5f;
-    cfg->sigma_v_mps = 0.05f;
-    cfg->sigma_a0_mps2 = 0.5f;
-    cfg->a_max_mps2 = 6.0f;
-    cfg->sigma_a_min_mps2 = 0.05f;
-    cfg->p0_var_m2 = 25.0f;
-    cfg->v0_var_m2ps2 = 1.0f;
-    cfg->a0_var_m2ps4 = 1.0f;
-    cfg->dt_max_s = 10.0f;
-    cfg->adaptive = 0u; /* docs/ALGORITHMS.md 2, note on the default */
-    cfg->coast = 0u;
-    mca_robust_config_default(&cfg->robust);
+    static const mca_cs_config_t d = MCA_CS_CONFIG_H_INIT(MCA_CS_SIGMA_A0_H);
+    mca_copy_bytes(cfg, &d, sizeof d);
 }
 
 MCA_COLD void mca_cs_config_default_v(mca_cs_config_t *cfg)
 {
-    mca_cs_config_default_h(cfg);
-    cfg->sigma_p_m = 3.0f;
-    cfg->sigma_v_mps = 0.08f;
-    cfg->sigma_a0_mps2 = 0.3f;
-    cfg->a_max_mps2 = 3.0f;
+    static const mca_cs_config_t d = MCA_CS_CONFIG_V_INIT;
+    mca_copy_bytes(cfg, &d, sizeof d);
 }
 
 MCA_COLD mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)

@@ -2,6 +2,7 @@
 #include "mcahrs/mca_nav.h"
 #include "mca_att_nocheck.h"
 #include "mca_cold.h"
+#include "mca_defaults.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -16,37 +17,35 @@ typedef char mca_nav_ws_fits_cs[(MCA_NAV_WS_LEN >= MCA_CS_WS_LEN) ? 1 : -1];
 
 MCA_COLD void mca_nav_config_default(mca_nav_config_t *c)
 {
-    memset(c, 0, sizeof(*c));
-    mca_cs_config_default_h(&c->cs_h);
-    mca_cs_config_default_v(&c->cs_v);
-    mca_att_config_default(&c->att);
-    c->comp_mode = MCA_COMP_CS;
-    c->yaw_source = MCA_YAW_COG; /* a ground vehicle moves along its nose */
-    c->cs_h.sigma_a0_mps2 = 1.0f; /* ALGORITHMS.md 8: the presets' CS tuning */
-    c->cs_h.tau_a_s = 2.0f;
-    c->cs_v.tau_a_s = 2.0f;
-    c->cs_lag_s = 0.2f;
-    c->gps_timeout_s = 1.5f;
-    c->grav_period_s = 0.1f;
-    c->nogps_rp_var_rad2 = 0.05f * 0.05f;
-    c->nogps_centripetal = 1u;
-    c->gravity_mps2 = 0.0f;
-    c->imu_dt_max_s = 0.1f;
-    c->init_still_s = 1.0f;
-    c->init_gyro_still_rps = 0.05f;
-    c->init_acc_still_mps2 = 0.5f;
-    c->init_timeout_s = 5.0f;
-    c->accel_sat_mps2 = 156.9f;
-    c->gps_pos_sigma_m = 2.5f;
-    c->gps_alt_sigma_m = 5.0f;
-    c->gps_vel_sigma_mps = 0.2f;
-    c->mag_declination_rad = 0.0f;
-    c->mag_yaw_sigma_rad = 0.05f;
-    c->cog_min_speed_mps = 3.0f;
-    c->cog_sigma0_rad = 0.05f;
-    c->gps_test_imu = 1u;
-    c->imu_acc_sigma_mps2 = 0.3f;
-    c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
+    static const mca_nav_config_t d = {
+        .cs_h = MCA_CS_CONFIG_H_INIT(1.0f), /* ALGORITHMS.md 8: the presets' CS tuning (tau_a 2 s) */
+        .cs_v = MCA_CS_CONFIG_V_INIT,
+        .att = MCA_ATT_CONFIG_INIT((30.0f * DEG) * (30.0f * DEG)),
+        .comp_mode = MCA_COMP_CS,
+        .yaw_source = MCA_YAW_COG, /* a ground vehicle moves along its nose */
+        .cs_lag_s = 0.2f,
+        .gps_timeout_s = 1.5f,
+        .grav_period_s = 0.1f,
+        .nogps_rp_var_rad2 = 0.05f * 0.05f,
+        .nogps_centripetal = 1u,
+        .gravity_mps2 = 0.0f,
+        .imu_dt_max_s = 0.1f,
+        .init_still_s = 1.0f,
+        .init_gyro_still_rps = 0.05f,
+        .init_acc_still_mps2 = 0.5f,
+        .init_timeout_s = 5.0f,
+        .accel_sat_mps2 = 156.9f,
+        .gps_pos_sigma_m = 2.5f,
+        .gps_alt_sigma_m = 5.0f,
+        .gps_vel_sigma_mps = 0.2f,
+        .mag_declination_rad = 0.0f,
+        .mag_yaw_sigma_rad = 0.05f,
+        .cog_min_speed_mps = 3.0f,
+        .cog_sigma0_rad = 0.05f,
+        .gps_test_imu = 1u,
+        .imu_acc_sigma_mps2 = 0.3f,
+    };
+    mca_copy_bytes(c, &d, sizeof d);
 }
 
 MCA_COLD void mca_nav_config_fixedwing(mca_nav_config_t *c)

@@ -2,6 +2,7 @@
  * sections 1 and 5). See mca_robust.h. */
 #include "mcahrs/mca_robust.h"
 #include "mca_cold.h"
+#include "mca_defaults.h"
 #include "mca_kf_rows.h"
 
 #include <math.h>
@@ -18,17 +19,8 @@ typedef char mca_meas_bits_ok[(MCA_MEAS_MAX <= 16) ? 1 : -1];
 
 void mca_robust_config_default(mca_robust_config_t *cfg)
 {
-    memset(cfg, 0, sizeof(*cfg));
-    cfg->mode = (uint8_t)MCA_ROBUST_PLAIN;
-    cfg->fuzzy_reject = 1u;
-    cfg->akf_window = MCA_AKF_WINDOW;
-    cfg->akf_forget = 0.2f;
-    cfg->akf_q_min = 0.5f;
-    cfg->akf_q_max = 10.0f;
-    cfg->igg_k0 = 1.5f;
-    cfg->igg_k1 = 3.0f;
-    cfg->reject_reset_n = (uint8_t)MCA_ROBUST_RESET_N_DEFAULT;
-    cfg->row_reset_n = 50u;
+    static const mca_robust_config_t d = MCA_ROBUST_CONFIG_INIT;
+    mca_copy_bytes(cfg, &d, sizeof d);
 }
 
 mca_status_t mca_robust_config_check(const mca_robust_config_t *c)
@@ -230,23 +222,18 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
     const float td1 = mca_chi2_quantile(m, MCA_CHI2_2P5E2);
     const float td2 = mca_chi2_quantile(m, MCA_CHI2_5E3);
     const float td3 = 10.0f * td2;
-    float dom_h = 0.0f, dom_m = 0.0f, dom_d = 0.0f;
+    /* mu = (TD1 / TD3) mu_H + mu_M / 2 + mu_D, piece by piece: a membership that is 0 on a piece
+     * adds +0, so each piece is that sum's bits */
+    float mu = 0.0f; /* a NaN T (refused by the update before it gets here) */
     if (t_stat < td1) {
-        dom_h = 1.0f;
+        mu = td1 / td3;
     } else if (t_stat <= td2) {
-        dom_h = (td2 - t_stat) / (td2 - td1);
+        mu = (td1 / td3) * ((td2 - t_stat) / (td2 - td1)) + 0.5f * ((t_stat - td1) / (td2 - td1));
+    } else if (t_stat < td3) {
+        mu = 0.5f * ((td3 - t_stat) / (td3 - td2)) + (t_stat - td2) / (td3 - td2);
+    } else if (t_stat >= td3) {
+        mu = 1.0f;
     }
-    if (t_stat > td1 && t_stat <= td2) {
-        dom_m = (t_stat - td1) / (td2 - td1);
-    } else if (t_stat > td2 && t_stat < td3) {
-        dom_m = (td3 - t_stat) / (td3 - td2);
-    }
-    if (t_stat > td3) {
-        dom_d = 1.0f;
-    } else if (t_stat >= td2) {
-        dom_d = (t_stat - td2) / (td3 - td2);
-    }
-    const float mu = (td1 / td3) * dom_h + 0.5f * dom_m + dom_d;
     float d = 0.5f * rs->d_k + mu; /* D_k = D_{k-1} / 2 + mu_k */
     uint8_t alarm = rs->alarm;
     const int rows = rc->fuzzy_reject == 2u;
