@@ -2,6 +2,7 @@
 #include "mcahrs/mca_cs.h"
 #include "mca_cold.h"
 #include "mca_defaults.h"
+#include "mca_kf_rows.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -584,6 +585,31 @@ MCA_NOINLINE static int axis_update_shared(mca_cs_axis_t *ax, const float p_post
     return 1;
 }
 
+/* Fuzzy rows on N and E, both tested against their IMU-aided predictions on position and
+ * velocity (docs/ALGORITHMS.md 5, the pair): the rows an alarmed axis' update will leave out for failing
+ * their own test go out of the other axis' update too (rs.started). A GNSS fault moves the
+ * horizontal solution as one; how it splits between N and E is the fault's azimuth. Nothing is
+ * written unless both axes qualify. */
+MCA_NOINLINE static void pair_rows(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
+                                   const float r_vel[3], const uint8_t mask[3], float *ws)
+{
+    static const size_t rows[MCA_CS_NZ] = {0u, 1u};
+    unsigned failed[2];
+    for (size_t i = 0; i < 2u; ++i) {
+        const mca_cs_axis_t *ax = &cs->axis[i];
+        if (ax->cfg.robust.mode != (uint8_t)MCA_ROBUST_FUZZY || ax->cfg.robust.fuzzy_reject != 2u ||
+            ax->aid.valid == 0u || mask[i] != (MCA_CS_POS | MCA_CS_VEL)) {
+            return;
+        }
+        const float zq[MCA_CS_NZ] = {pos[i], vel[i]}, rq[MCA_CS_NZ] = {r_pos[i], r_vel[i]};
+        float nu_t[MCA_CS_NZ], c_t[MCA_CS_NZ * MCA_CS_NZ];
+        aid_test(&ax->aid, zq, rq, rows, MCA_CS_NZ, nu_t, c_t);
+        failed[i] = mca_kf_fuzzy_failed(&ax->cfg.robust, &ax->rs, nu_t, c_t, MCA_CS_NZ, ws);
+    }
+    cs->axis[0].rs.started = (uint8_t)failed[1];
+    cs->axis[1].rs.started = (uint8_t)failed[0];
+}
+
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
                             const float r_vel[3], const uint8_t mask[3], float *ws, mca_update_report_t rep[3])
 {
@@ -605,6 +631,7 @@ mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3
      * R > 0 (checked above), so an update can fail now only by float overflow, which leaves
      * that axis unchanged (mca_kf_update is atomic). */
     mca_status_t result = MCA_OK;
+    pair_rows(cs, pos, vel, r_pos, r_vel, mask, ws);
     if (rep != NULL) {
         for (size_t i = 0; i < 3u; ++i) {
             mca_status_t st = MCA_OK;

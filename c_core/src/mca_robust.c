@@ -69,11 +69,12 @@ size_t mca_kf_ws_len(size_t n, size_t m)
 /* ---------------------------------------------------------------- memory */
 
 /* 1 when rs is a memory that mca_robust_state_init and mca_kf_update can have produced
- * (counters in range, flags 0/1, statistics finite, variances >= 0, 0 < q_scale, D_k >= 0).
+ * (counters in range, alarm 0/1, started a row mask, statistics finite, variances >= 0,
+ * 0 < q_scale, D_k >= 0).
  * Only the modes that use the memory check it. */
 static int memory_ok(const mca_robust_state_t *rs)
 {
-    if (rs->win_n > MCA_AKF_WINDOW || rs->win_head >= MCA_AKF_WINDOW || rs->alarm > 1u || rs->started > 1u ||
+    if (rs->win_n > MCA_AKF_WINDOW || rs->win_head >= MCA_AKF_WINDOW || rs->alarm > 1u || rs->started >= (1u << MCA_MEAS_MAX) ||
         rs->n_reject == UINT8_MAX) {
         return 0;
     }
@@ -203,6 +204,7 @@ typedef struct {
     float d_k;         /* fuzzy: D_k after this update */
     float q_scale;     /* AKF: Q factor after this update; 1 in other modes */
     float e_new;       /* AKF: this epoch's nu^T nu - tr(R) */
+    unsigned failed;   /* fuzzy rows: rows out for failing their own test (none without alarm) */
 } mca_plan_t;
 
 /* FTA (paper 000): gamma = T / chi2_m(1e-4) above the threshold, else 1. */
@@ -215,9 +217,10 @@ static void plan_fta(mca_plan_t *pl, size_t m, float t_stat)
 }
 
 /* Fuzzy three-threshold detector (paper 001). Memberships of T as ALGORITHMS.md 5 writes
- * them; where two pieces meet (T = TD1, TD2, TD3) both give the same value. */
+ * them; where two pieces meet (T = TD1, TD2, TD3) both give the same value. pair: rows a
+ * fuzzy-rows update leaves out whatever its alarm (the paired axis', ALGORITHMS.md 5). */
 static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_robust_state_t *rs, size_t m,
-                       float t_stat, const float *nu, const float *c)
+                       float t_stat, const float *nu, const float *c, unsigned pair)
 {
     const float td1 = mca_chi2_quantile(m, MCA_CHI2_2P5E2);
     const float td2 = mca_chi2_quantile(m, MCA_CHI2_5E3);
@@ -246,13 +249,15 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
     pl->d_k = d;
     pl->alarm = alarm;
     pl->detected = alarm;
-    if (alarm != 0u) {
-        if (rows) {
-            /* rows (ALGORITHMS.md 5): out go the rows whose own standardised test residual fails
-             * chi2_1(0.005) and, while any does, the rows out on the last two updates; none or
-             * every row failing rejects the whole update. At the alarm's first epoch after an
-             * applied one past TD2 (D_{k-1} >= 0.5), a row whose innovation has the opposite sign
-             * of that epoch's is the return from the outlier it took in: applied. */
+    if (rows) {
+        /* rows (ALGORITHMS.md 5): while alarmed, out go the rows whose own standardised test
+         * residual fails chi2_1(0.005) and, while any does, the rows out on the last two updates;
+         * none or every row failing rejects the whole update. At the alarm's first epoch after an
+         * applied one past TD2 (D_{k-1} >= 0.5), a row whose innovation has the opposite sign of
+         * that epoch's is the return from the outlier it took in: applied. The pair rows go out
+         * alarmed or not. */
+        unsigned drop = pair;
+        if (alarm != 0u) {
             const float k2 = mca_chi2_quantile(1u, MCA_CHI2_5E3);
             const int onset = rs->alarm == 0u && rs->d_k >= 0.5f;
             unsigned fail = 0u, back = 0u, was = 0u;
@@ -261,10 +266,13 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
                 back |= (unsigned)(onset && nu[j] * rs->nu_mean[j] < 0.0f) << j;
                 was |= (unsigned)(rs->n_removed[j] > 1u) << j;
             }
-            const unsigned out = fail & ~back;
-            pl->keep &= ~(fail == 0u ? pl->keep : out != 0u ? out | was : 0u);
-            pl->rejected = pl->keep == 0u;
-        } else if (rc->fuzzy_reject != 0u) {
+            pl->failed = fail & ~back;
+            drop |= fail == 0u ? pl->keep : pl->failed != 0u ? pl->failed | was : 0u;
+        }
+        pl->keep &= ~drop;
+        pl->rejected = pl->keep == 0u;
+    } else if (alarm != 0u) {
+        if (rc->fuzzy_reject != 0u) {
             pl->rejected = 1;
         } else {
             const float g = t_stat / td2;
@@ -815,6 +823,20 @@ mca_status_t mca_kf_test_stat(const float *nu_t, const float *c_t, size_t m, flo
     return test_stat(nu_t, c_t, ws, ws + m * m, ws + 2u * m * m, m, t_stat);
 }
 
+unsigned mca_kf_fuzzy_failed(const mca_robust_config_t *rc, const mca_robust_state_t *rs, const float *nu_t,
+                             const float *c_t, size_t m, float *ws)
+{
+    float t_stat;
+    if (test_stat(nu_t, c_t, ws, ws + m * m, ws + 2u * m * m, m, &t_stat) != MCA_OK || !isfinite(t_stat)) {
+        return 0u;
+    }
+    mca_plan_t pl; /* plan_fuzzy reads only keep; failed is written only when alarmed */
+    pl.keep = (1u << m) - 1u;
+    pl.failed = 0u;
+    plan_fuzzy(&pl, rc, rs, m, t_stat, nu_t, c_t, 0u);
+    return pl.failed;
+}
+
 MCA_NOINLINE void mca_kf_plain_memory(mca_robust_state_t *rs, size_t m, float t_stat)
 {
     if (rs != NULL) {
@@ -1023,7 +1045,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
         plan_akf(&pl, rc, rs, n, m, h, kk, r, y, nu_m, t_stat, d);
         break;
     case MCA_ROBUST_FUZZY:
-        plan_fuzzy(&pl, rc, rs, m, t_stat, nu_m, c_m);
+        plan_fuzzy(&pl, rc, rs, m, t_stat, nu_m, c_m, rs->started);
         break;
     case MCA_ROBUST_IGG3:
         plan_igg(&pl, rc, m, r, nu_m, c_m, d, rep != NULL ? rep->w : NULL);
@@ -1111,6 +1133,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     } else if (mode == MCA_ROBUST_FUZZY) {
         rs->d_k = pl.d_k;
         rs->alarm = pl.alarm;
+        rs->started = 0u; /* the pair rows are for one update */
         mca_copyf(rs->nu_mean, nu_m, m); /* the last tested innovation (fuzzy rows' return rule) */
     }
     if (rs != NULL && !reset) {

@@ -247,6 +247,60 @@ static void test_coast_starts_when_the_velocity_is_out(void)
     }
 }
 
+/* Fuzzy rows' N/E pair (ALGORITHMS.md 5): a 50 m north jump that N alarms on, with a 4 m east
+ * share that E alone lets in (its T of 12 is below TD3 on a first epoch), leaves E's position
+ * out too when both axes test position and velocity against the IMU; E's velocity stays in. With
+ * a position-only east fix (the axes' rows differ) there is no pair. Both mca_cs3_update paths
+ * (with and without reports) pair the same way. */
+static void test_ne_pair_leaves_the_partner_rows_out(void)
+{
+    mca_cs_config_t h, v;
+    mca_cs_config_default_h(&h);
+    mca_cs_config_default_v(&v);
+    h.coast = 1u;
+    h.robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
+    h.robust.fuzzy_reject = 2u;
+    h.robust.reject_reset_n = 100u;
+    h.robust.row_reset_n = 0u;
+    const float t = 0.2f;
+    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f}; /* the IMU: no acceleration */
+    const mca_cs_inc_t *const incs[3] = {&inc, &inc, &inc};
+    float ws[MCA_CS_WS_LEN];
+    mca_update_report_t rep[3];
+    const float r_pos[3] = {1.0f, 1.0f, 4.0f}, r_vel[3] = {0.01f, 0.01f, 0.04f};
+    for (int variant = 0; variant < 3; ++variant) { /* 0, 1: paired (reports, none); 2: E position only */
+        mca_cs3_t cs;
+        const float p0[3] = {0.0f, 0.0f, 0.0f}, v0[3] = {5.0f, 0.0f, 0.0f};
+        CHECK_EQ_INT(mca_cs3_init(&cs, &h, &v, p0, v0), MCA_OK);
+        const uint8_t both = MCA_CS_POS | MCA_CS_VEL;
+        const uint8_t mask[3] = {both, variant == 2 ? (uint8_t)MCA_CS_POS : both, both};
+        float pos[3] = {0.0f, 0.0f, 0.0f};
+        const float vel[3] = {5.0f, 0.0f, 0.0f};
+        for (int n = 1; n <= 31; ++n) { /* 30 clean fixes, then the jump */
+            CHECK_EQ_INT(mca_cs3_predict_aided(&cs, t, incs), MCA_OK);
+            pos[0] = 5.0f * t * (float)n + (n == 31 ? 50.0f : 0.0f);
+            pos[1] = n == 31 ? 4.0f : 0.0f;
+            const float e_prior = cs.axis[1].x[0];
+            CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, r_pos, r_vel, mask, ws, variant == 1 ? NULL : rep), MCA_OK);
+            if (n < 31) {
+                continue;
+            }
+            CHECK_EQ_INT(cs.axis[0].rs.alarm, 1);        /* N alarms: its position out */
+            CHECK_EQ_INT(cs.axis[0].rs.n_removed[0], 1);
+            CHECK_EQ_INT(cs.axis[1].rs.alarm, 0);        /* E does not alarm on its 4 m */
+            CHECK_EQ_INT(cs.axis[1].rs.started, 0);      /* the pair rows were for this update */
+            CHECK_EQ_INT(cs.axis[1].aid.out, 0);         /* E's velocity applied: no coast */
+            if (variant < 2) {
+                CHECK_EQ_INT(cs.axis[1].rs.n_removed[0], 1); /* out for the pair */
+                CHECK(fabsf(cs.axis[1].x[0] - e_prior) < 0.05f);
+            } else {
+                CHECK_EQ_INT(cs.axis[1].rs.n_removed[0], 0); /* no pair: E takes part of it */
+                CHECK(cs.axis[1].x[0] - e_prior > 0.5f);
+            }
+        }
+    }
+}
+
 int main(void)
 {
     test_shared_ne_update_same_bits();
@@ -255,5 +309,6 @@ int main(void)
     test_long_run_stays_spd();
     test_coasting_predict();
     test_coast_starts_when_the_velocity_is_out();
+    test_ne_pair_leaves_the_partner_rows_out();
     TEST_MAIN_END();
 }

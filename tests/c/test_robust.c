@@ -4,6 +4,7 @@
  * x, P and the memory untouched in every mode, P staying symmetric positive definite. */
 #include <string.h>
 
+#include "mca_kf_rows.h" /* private: mca_kf_fuzzy_failed */
 #include "mca_test.h"
 #include "mcahrs/mca_robust.h"
 
@@ -1091,6 +1092,66 @@ static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
     }
 }
 
+/* Fuzzy rows' N/E pair (ALGORITHMS.md 5): mca_kf_fuzzy_failed gives the rows an alarmed update
+ * would leave out for failing their own test (not the rows only kept out; none without an alarm
+ * or when no row fails alone) and changes nothing; the rows in rs.started go out of the next
+ * fuzzy-rows update, alarmed or not, which then clears them. H = I, P = I, R = 0.1 I: the test
+ * innovation is z, C = 1.1 I. */
+static void test_fuzzy_rows_pair(void)
+{
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_FUZZY);
+    rc.fuzzy_reject = 2u;
+    mca_robust_state_t rs;
+    mca_robust_state_init(&rs);
+    const float c_t[4] = {1.1f, 0.0f, 0.0f, 1.1f}, c_bad[4] = {-1.0f, 0.0f, 0.0f, 1.1f};
+    const float quiet[2] = {0.1f, 0.1f}, big0[2] = {100.0f, 0.1f}, both[2] = {2.6f, 2.6f};
+    CHECK_EQ_INT((int)mca_kf_fuzzy_failed(&rc, &rs, quiet, c_t, 2u, g_ws), 0); /* no alarm */
+    CHECK_EQ_INT((int)mca_kf_fuzzy_failed(&rc, &rs, big0, c_t, 2u, g_ws), 1);  /* T past TD3: row 0 */
+    CHECK_EQ_INT((int)mca_kf_fuzzy_failed(&rc, &rs, big0, c_bad, 2u, g_ws), 0); /* C refused */
+    CHECK(rs.d_k == 0.0f && rs.alarm == 0u && rs.started == 0u);             /* nothing written */
+    rs.alarm = 1u;
+    rs.d_k = 1.9f;
+    /* each row 2.48 sigma alone (< 2.81), T = 12.3 > TD2: alarmed, nothing singled out */
+    CHECK_EQ_INT((int)mca_kf_fuzzy_failed(&rc, &rs, both, c_t, 2u, g_ws), 0);
+    rs.n_removed[1] = 2u; /* row 1 out on the last two updates: kept out, but not failing */
+    CHECK_EQ_INT((int)mca_kf_fuzzy_failed(&rc, &rs, big0, c_t, 2u, g_ws), 1);
+
+    const float h[4] = {1.0f, 0.0f, 0.0f, 1.0f}, r[4] = {0.1f, 0.0f, 0.0f, 0.1f};
+    mca_update_report_t rep;
+    /* z, pair rows, then: alarm, rejected, x[0] / x[1] moved */
+    const struct {
+        const float *z;
+        uint8_t pair;
+        int alarm, rejected, moved0, moved1;
+    } steps[] = {
+        {quiet, 1u, 0, 0, 0, 1}, /* not alarmed: row 0 out for the pair, row 1 applied */
+        {quiet, 3u, 0, 1, 0, 0}, /* both: rejected without an alarm */
+        {quiet, 0u, 0, 0, 1, 1}, /* the pair rows were for one update: everything applied */
+        {big0, 2u, 1, 1, 0, 0},  /* alarmed, row 0 fails, row 1 for the pair: rejected */
+    };
+    mca_robust_state_init(&rs);
+    for (size_t k = 0; k < sizeof steps / sizeof steps[0]; ++k) {
+        float x[2] = {0.0f, 0.0f}, p[4];
+        eye(p, 2, 1.0f);
+        rs.started = steps[k].pair;
+        CHECK_EQ_INT(mca_kf_update(x, p, 2, h, steps[k].z, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
+        CHECK_EQ_INT(rep.alarm, steps[k].alarm);
+        CHECK_EQ_INT(rep.rejected, steps[k].rejected);
+        CHECK_EQ_INT(x[0] != 0.0f, steps[k].moved0);
+        CHECK_EQ_INT(x[1] != 0.0f, steps[k].moved1);
+        CHECK_EQ_INT(rs.n_removed[0] > 0u || rs.n_reject > 0u, !steps[k].moved0);
+        CHECK_EQ_INT(rs.started, 0);
+    }
+    /* a memory whose started is no row mask is refused, and left as it was */
+    mca_robust_state_init(&rs);
+    rs.started = (uint8_t)(1u << MCA_MEAS_MAX);
+    float x[2] = {0.0f, 0.0f}, p[4];
+    eye(p, 2, 1.0f);
+    CHECK_EQ_INT(mca_kf_update(x, p, 2, h, quiet, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_ERR_BAD_ARG);
+    CHECK(x[0] == 0.0f && rs.started == (uint8_t)(1u << MCA_MEAS_MAX));
+}
+
 int main(void)
 {
     test_chi2_table_matches_closed_form();
@@ -1108,5 +1169,6 @@ int main(void)
     test_fuzzy_rows_leave_out_the_failing_row();
     test_fuzzy_rows_long_guard_needs_a_test_innovation();
     test_fuzzy_rows_apply_the_return_from_a_spike();
+    test_fuzzy_rows_pair();
     TEST_MAIN_END();
 }

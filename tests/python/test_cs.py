@@ -98,13 +98,19 @@ def _run_random_in_segments(dt, zp, zv, rp, rv, mask):
     from the C state at its start (float32 values, exactly representable in float64)."""
     c = core.Cs3(core.cs_config(False, adaptive=1), core.cs_config(True, adaptive=1))
     n = len(dt)
-    out = {"x": np.zeros((n, 3, 5), np.float32), "P": np.zeros((n, 3, 5, 5), np.float32),
-           "T": np.zeros((n, 3), np.float32), "status": np.zeros(n, np.uint8)}
+    out = {
+        "x": np.zeros((n, 3, 5), np.float32),
+        "P": np.zeros((n, 3, 5, 5), np.float32),
+        "T": np.zeros((n, 3), np.float32),
+        "status": np.zeros(n, np.uint8),
+    }
     gx, gp, gt = np.zeros((n, 3, 5)), np.zeros((n, 3, 5, 5)), np.full((n, 3), np.nan)
     for k0 in range(0, n, SEGMENT):
         sl = slice(k0, min(n, k0 + SEGMENT))
-        g = gcs.Cs3(replace(gcs.CsAxisConfig.horizontal(), adaptive=True),
-                    replace(gcs.CsAxisConfig.vertical(), adaptive=True))
+        g = gcs.Cs3(
+            replace(gcs.CsAxisConfig.horizontal(), adaptive=True),
+            replace(gcs.CsAxisConfig.vertical(), adaptive=True),
+        )
         g.init()
         for i, ax in enumerate(g.axes):
             ax.x, ax.P = c.x[i].astype(np.float64), c.P[i].astype(np.float64)
@@ -420,11 +426,12 @@ def test_imu_aided_prior_and_its_t_match_golden() -> None:
     assert worst_y <= 1e-4 and worst_s <= 1e-4 and worst_t <= 1e-3
 
 
-def _fuzzy_rows_track(seed: int) -> tuple[np.ndarray, ...]:
+def _fuzzy_rows_track(seed: int, scale: float = 1.0) -> tuple[np.ndarray, ...]:
     """A 1-D horizontal track at 5 Hz (0.2 s): a smooth maneuver, GPS position and velocity with
     white noise, and the IMU's increments over each interval from the true acceleration plus a
-    0.05 m/s^2 bias. Faults (fix indices): a 30 m position fault over 100..179 (velocity good),
-    a 25 m + 2 m/s fault of both over 220..249, a 3 m/s velocity fault over 290..319."""
+    0.05 m/s^2 bias. Faults (fix indices), times ``scale``: a 30 m position fault over 100..179
+    (velocity good), a 25 m + 2 m/s fault of both over 220..249, a 3 m/s velocity fault over
+    290..319."""
     rng = np.random.default_rng(seed)
     n, t = 400, 0.2
     tt = np.arange(n + 1) * t
@@ -435,10 +442,10 @@ def _fuzzy_rows_track(seed: int) -> tuple[np.ndarray, ...]:
     dp = (acc[:-1] / 3.0 + acc[1:] / 6.0) * t * t + 0.025 * t * t
     zp = pos[1:] + rng.normal(0.0, 1.0, n)
     zv = vel[1:] + rng.normal(0.0, 0.1, n)
-    zp[100:180] += 30.0
-    zp[220:250] += 25.0
-    zv[220:250] += 2.0
-    zv[290:320] += 3.0
+    zp[100:180] += 30.0 * scale
+    zp[220:250] += 25.0 * scale
+    zv[220:250] += 2.0 * scale
+    zv[290:320] += 3.0 * scale
     return zp, zv, dp, dv, pos[1:], vel[1:]
 
 
@@ -512,6 +519,101 @@ def test_fuzzy_rows_and_coasting_match_golden() -> None:
     assert herr[100:180].max() < 5.0 and herr[220:250].max() < 5.0
 
 
+def _golden_pair_run(tracks: list[tuple[np.ndarray, ...]], pair: bool, c: core.Cs3 | None = None) -> dict:
+    """N and E golden CS axes with fuzzy rows and coasting through the faults of ``tracks`` (one
+    per axis), the pair of ALGORITHMS.md 5 applied (``pair``) or not; with ``c`` the C filter runs
+    beside them and its decisions and state are compared fix by fix."""
+    from mcahrs.golden.robust import RobustConfig, RobustState, fuzzy_rows_failed, robust_update
+
+    t, rp, rv, qa = 0.2, 1.0, 0.01, 0.09
+    gcfg = RobustConfig("fuzzy", fuzzy_reject=2, reject_reset_n=100, row_reset_n=0)
+    axes = [gcs.CsAxis(gcs.CsAxisConfig.horizontal()) for _ in range(2)]
+    for g in axes:
+        g.init(0.0, 8.0)
+    states = [RobustState(), RobustState()]
+    out = [False, False]
+    n = len(tracks[0][0])
+    pos_out = np.zeros((n, 2), bool)
+    herr = np.zeros((n, 2))
+    worst = 0.0
+    H = np.array([[1.0, 0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 0.0, 1.0]])
+    R = np.diag([rp, rv])
+    for k in range(n):
+        zs = [np.array([tr[0][k], tr[1][k]]) for tr in tracks]
+        tests = []
+        for i, (g, tr) in enumerate(zip(axes, tracks, strict=True)):
+            y, s = g.aided_prior(t, tr[2][k], tr[3][k], qa)
+            g.predict_coasting(t, tr[2][k], tr[3][k], qa) if out[i] else g.predict(t)
+            tests.append((zs[i] - y, s + R, y))
+        failed = [fuzzy_rows_failed(gcfg, states[i], tests[i][0], tests[i][1]) for i in range(2)]
+        reps = []
+        for i, g in enumerate(axes):
+            nu_t, c_t, y = tests[i]
+            g.x, g.P, rep = robust_update(
+                g.x,
+                g.P,
+                H,
+                zs[i],
+                R,
+                gcfg,
+                states[i],
+                test=(nu_t, c_t),
+                pair_out=failed[1 - i] if pair else None,
+            )
+            if rep.rejected and not out[i]:  # the coast starts from the IMU-aided prediction
+                g.x[0], g.x[1] = y[0] - g.x[3], y[1] - g.x[4]
+            out[i] = bool(rep.rejected) or states[i].n_removed[1] > 0
+            pos_out[k, i] = bool(rep.rejected) or states[i].n_removed[0] > 0
+            herr[k, i] = abs(float(g.x[0]) - tracks[i][4][k])
+            reps.append(rep)
+        if c is None:
+            continue
+        dp = [tracks[0][2][k], tracks[1][2][k], 0.0]
+        dv = [tracks[0][3][k], tracks[1][3][k], 0.0]
+        c.predict_aided(t, dp, dv, np.array([qa, qa, np.nan]))
+        crep = c.update(
+            [tracks[0][0][k], tracks[1][0][k], 0.0],
+            [tracks[0][1][k], tracks[1][1][k], 0.0],
+            [rp, rp, 4.0],
+            [rv, rv, 1.0],
+            [3, 3, 1],
+        )
+        for i, g in enumerate(axes):
+            assert bool(crep["rejected"][i]) == bool(reps[i].rejected), (k, i)
+            assert bool(crep["alarm"][i]) == bool(reps[i].alarm), (k, i)
+            assert bool(crep["coasting"][i]) == out[i], (k, i)
+            sd = np.sqrt(np.diag(g.P))
+            worst = max(worst, float(np.max(np.abs(c.x[i] - g.x) / sd)))
+            worst = max(worst, float(np.max(np.abs(c.P[i] - g.P) / np.outer(sd, sd))))
+    return {"pos_out": pos_out, "herr": herr, "worst": worst}
+
+
+def test_fuzzy_rows_pair_matches_golden() -> None:
+    """Fuzzy rows on N and E (ALGORITHMS.md 5, the pair): the faults of the one-axis test at an
+    azimuth of 8 degrees, so that E gets an eighth of each (a 4 m position fault against a 1 m
+    GPS sigma, and 0.3 m/s against 0.1). C against the golden composition (fuzzy_rows_failed of
+    both axes first, then each update with the other's failing rows out) fix by fix: the same
+    decisions, x and P within float32 rounding. And what the pair is for: the position fault that
+    N alarms on is left out of E too, where E alone lets it in part-way."""
+    az = np.radians(8.0)
+    tracks = [_fuzzy_rows_track(5, float(np.cos(az))), _fuzzy_rows_track(6, float(np.sin(az)))]
+    robust = {"mode": core.lib.MCA_ROBUST_FUZZY, "fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}
+    c = core.Cs3(
+        core.cs_config(False, coast=1, robust=robust), core.cs_config(True), [0.0, 0.0, 0.0], [8.0, 8.0, 0.0]
+    )
+    paired = _golden_pair_run(tracks, True, c)
+    alone = _golden_pair_run(tracks, False)
+    e_pair, e_alone = paired["herr"][100:180, 1].max(), alone["herr"][100:180, 1].max()
+    out_pair, out_alone = paired["pos_out"][100:180, 1].mean(), alone["pos_out"][100:180, 1].mean()
+    print(f"pair, C vs golden: {paired['worst']:.1e} sd; E through the position fault:")
+    print(f"  max error {e_pair:.2f} m with the pair, {e_alone:.2f} m alone;")
+    print(f"  position out {out_pair:.0%} of it with the pair, {out_alone:.0%} alone")
+    assert paired["worst"] <= 1e-3
+    assert paired["pos_out"][101:180, 1].all()  # out with N's, from N's first alarmed fix on
+    assert not paired["pos_out"][:100].any()  # nothing wrong, nothing left out
+    assert e_pair < 2.0 and e_alone > 2.0 * e_pair
+
+
 def test_config_ranges_match_the_c_core() -> None:
     """The Gauss-Markov error stds may be 0 (a receiver error taken as white) in the golden
     model as in the C core (mca_cs_config_check); a negative one is refused by both."""
@@ -525,4 +627,3 @@ def test_config_ranges_match_the_c_core() -> None:
                     gcs.CsAxis(replace(gcs.CsAxisConfig(), **{name: v}))
                 with pytest.raises(errors.BadConfigError):
                     core.cs_config(False, **{name: v})
-

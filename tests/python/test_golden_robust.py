@@ -25,6 +25,7 @@ from mcahrs.golden.robust import (
     fuzzy_detector_step,
     fuzzy_memberships,
     fuzzy_mu,
+    fuzzy_rows_failed,
     fuzzy_thresholds,
     igg_reweight,
     igg_weight,
@@ -578,3 +579,31 @@ def test_fuzzy_rows_apply_the_return_from_a_spike() -> None:
         xn, _, rep = robust_update(np.zeros(2), P, H, np.array([8.0 * sign, 0.1]), R, cfg, st2)
         assert rep.alarm and not rep.rejected and xn[1] != 0.0
         assert (xn[0] != 0.0) == (sign < 0) and (st2.n_removed[0] > 0) == (sign > 0)
+
+
+def test_fuzzy_rows_pair() -> None:
+    """The N/E pair of fuzzy rows (ALGORITHMS.md 5): ``fuzzy_rows_failed`` gives the rows an
+    alarmed update would leave out for failing alone, reads the memory and changes nothing; an
+    update's ``pair_out`` rows go out whether or not it alarms. H = I, P = I, R = 0.1 I."""
+    cfg = RobustConfig("fuzzy", fuzzy_reject=2)
+    C = 1.1 * np.eye(2)
+    st = RobustState()
+    assert fuzzy_rows_failed(cfg, st, [0.1, 0.1], C) == (False, False)  # no alarm
+    assert fuzzy_rows_failed(cfg, st, [100.0, 0.1], C) == (True, False)  # past TD3: row 0
+    assert fuzzy_rows_failed(RobustConfig("fuzzy"), st, [100.0, 0.1], C) == (False, False)  # reject mode
+    assert st.d_k == 0.0 and not st.alarm and not st.nu_mean.any() and st.n_removed == [0] * len(st.n_removed)
+    st.alarm, st.d_k = True, 1.9
+    assert fuzzy_rows_failed(cfg, st, [2.6, 2.6], C) == (False, False)  # nothing singled out
+    st.n_removed[1] = 2  # kept out, but not failing
+    assert fuzzy_rows_failed(cfg, st, [100.0, 0.1], C) == (True, False)
+
+    H, R, x0, P0 = np.eye(2), 0.1 * np.eye(2), np.zeros(2), np.eye(2)
+    st = RobustState()
+    x, _, rep = robust_update(x0, P0, H, [0.1, 0.1], R, cfg, st, pair_out=(True, False))
+    assert not rep.alarm and not rep.rejected and x[0] == 0.0 and x[1] != 0.0 and st.n_removed[:2] == [1, 0]
+    x, _, rep = robust_update(x0, P0, H, [0.1, 0.1], R, cfg, st, pair_out=(True, True))
+    assert rep.rejected and not rep.alarm and not x.any() and st.n_reject == 1
+    x, _, rep = robust_update(x0, P0, H, [100.0, 0.1], R, cfg, RobustState(), pair_out=(False, True))
+    assert rep.alarm and rep.rejected  # row 0 fails, row 1 for the pair
+    with pytest.raises(BadArgError):
+        robust_update(x0, P0, H, [0.1, 0.1], R, cfg, RobustState(), pair_out=(True,))

@@ -170,6 +170,11 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t_s, const mca_cs_inc_t 
  * Without reports, N and E share one covariance update when their covariances have the same
  * bits, with the same mask and variances, both plain (docs/ALGORITHMS.md 3): E applies N's
  * gains to its own state and takes N's new P, the same bits as its own update.
+ * With fuzzy rows on N and E, both tested on position and velocity against their IMU-aided
+ * predictions, the rows an alarmed axis leaves out for failing go out of the other's update too
+ * (docs/ALGORITHMS.md 5, the N/E pair): each axis' plan is made first, read only (a test
+ * statistic and a detector step more per axis; the golden vectors run plain mode, so the
+ * instruction figures below do not include it).
  * Cost: one mca_kf_update per axis with a mask, ~2.5k instructions each on the Cortex-M4F
  * (-Os with LTO, mean of the three-axis call with reports 7.4k, max 10.0k; 6.9k mean at -O2); a
  * shared E ~0.5k.

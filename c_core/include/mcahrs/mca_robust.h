@@ -66,7 +66,10 @@ typedef struct {
     uint8_t win_n;                 /**< AKF: entries in win, saturating at MCA_AKF_WINDOW */
     uint8_t win_head;              /**< AKF: next slot */
     uint8_t alarm;                 /**< fuzzy: alarm raised */
-    uint8_t started;               /**< AKF: row statistics initialised */
+    uint8_t started;               /**< AKF: row statistics initialised; fuzzy rows: rows the
+                                        next update leaves out whatever its alarm (bit j: row j),
+                                        set by the caller (mca_cs3_update: the paired horizontal
+                                        axis' failing rows), cleared by that update */
     uint8_t n_reject;              /**< rejected updates in a row (lock-up guard) */
     uint8_t detected;              /**< the last successful update's detected flag (the report's),
                                         for callers that pass no report; read by no mode */
@@ -114,7 +117,7 @@ mca_status_t mca_robust_config_check(const mca_robust_config_t *cfg);
  * Empty memory: q_scale 1, D_k 0, no alarm, empty AKF window, zero row statistics.
  * Cost: a memset. Cannot fail (st must not be NULL). A filter that switches its mode at run
  * time should call it: a mode only reads and writes the fields it owns (AKF: win, nu_mean,
- * nu_var, q_scale, win_n, win_head, started; fuzzy: d_k, alarm, nu_mean), so a q_scale left by
+ * nu_var, q_scale, win_n, win_head, started; fuzzy: d_k, alarm, nu_mean, started), so a q_scale left by
  * AKF would otherwise keep scaling Q after a switch to another mode.
  */
 void mca_robust_state_init(mca_robust_state_t *st);
@@ -125,6 +128,7 @@ void mca_robust_state_init(mca_robust_state_t *st);
  * out. Cost: m + 1 compares. Reads only st (not NULL).
  */
 int mca_robust_left_out(const mca_robust_state_t *st, size_t m);
+
 
 /**
  * Upper-a quantile of chi-square with m degrees of freedom, chi2_m(a) =

@@ -573,6 +573,7 @@ class _Step:
     T: float
     nu_test: np.ndarray  # what the mode tests: nu itself, or the caller's test innovation
     C_test: np.ndarray  # its covariance (incl. R)
+    pair_out: tuple[bool, ...] | None = None  # fuzzy rows: rows out whatever the alarm
 
     @property
     def m(self) -> int:
@@ -657,11 +658,15 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
     nu_prev = np.array(memory.nu_mean[: step.m], dtype=np.float64)
     memory.d_k, memory.alarm, _ = fuzzy_detector_step(memory.d_k, memory.alarm, step.T, step.m, rows)
     memory.nu_mean[: step.m] = step.nu_test  # the last tested innovation (read by fuzzy rows)
+    pair = step.pair_out if rows and step.pair_out is not None else (False,) * step.m
+    if rows and memory.alarm:
+        out = _fuzzy_rows_out(step, memory, nu_prev if onset else None)
+        return _rows_update(step, [o or p for o, p in zip(out, pair, strict=True)], alarm=True)
+    if rows and any(pair):
+        return _rows_update(step, list(pair), alarm=False)
     if not memory.alarm:
         x, P = _gain_update(step.x, step.P, step.H, step.nu, step.C, step.R)
         return x, P, _outcome(step.m)
-    if rows:
-        return _fuzzy_rows(step, memory, nu_prev if onset else None)
     if cfg.fuzzy_reject:
         return step.x, step.P, _outcome(step.m, detected=True, rejected=True, alarm=True)
     _, td2, _ = fuzzy_thresholds(step.m)
@@ -670,37 +675,75 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
     return x, P, _outcome(step.m, factor=gamma, detected=True, alarm=True)
 
 
-def _fuzzy_rows(step: _Step, memory: RobustState, nu_prev: np.ndarray | None) -> _Result:
-    """Fuzzy rows while alarmed (ALGORITHMS.md 5): a row fails when its own standardised test
-    residual, nu_t,i^2 / C_t,ii, exceeds chi2_1(0.005); while any row fails, the rows the last two
-    updates left out (rejected, or removed) stay out too: one failure by chance (0.5 % of clean
-    rows) does not keep a row out. The other rows make a section-1 update; no row or every row
-    failing rejects the update. The report's w stays 1.
+def _fuzzy_rows_out(step: _Step, memory: RobustState, nu_prev: np.ndarray | None) -> list[bool]:
+    """The rows fuzzy rows leaves out while alarmed (ALGORITHMS.md 5): a row fails when its own
+    standardised test residual, nu_t,i^2 / C_t,ii, exceeds chi2_1(0.005); while any row fails, the
+    rows the last two updates left out (rejected, or removed) stay out too: one failure by chance
+    (0.5 % of clean rows) does not keep a row out. No row failing leaves every row out (the
+    joint test alone singles out none).
 
     ``nu_prev``: at the alarm's first epoch after an applied epoch past TD2 (D_{k-1} >= 0.5), that
     epoch's tested innovation; a row whose innovation has the opposite sign is the return from
     the outlier that epoch took in: it does not count as failing (if only such rows fail, the
     update takes every row)."""
     m = step.m
+    fails, bad = _fuzzy_row_tests(step, nu_prev)
+    if not any(fails):
+        return [True] * m
+    if any(bad):
+        # n_removed counts the updates in a row that left row i out (a rejection leaves every row out)
+        were_out = [memory.n_removed[i] > 1 for i in range(m)]
+        return [f or w for f, w in zip(bad, were_out, strict=True)]
+    return [False] * m  # only returns fail: the update takes every row
+
+
+def _fuzzy_row_tests(step: _Step, nu_prev: np.ndarray | None) -> tuple[list[bool], list[bool]]:
+    """Per row: fails its own test; fails and is not a return (see ``_fuzzy_rows_out``)."""
+    m = step.m
     k2 = chi2_quantile(FUZZY_TD2_ALPHA, 1)
     back = [nu_prev is not None and float(step.nu_test[i]) * float(nu_prev[i]) < 0.0 for i in range(m)]
     fails = [float(step.nu_test[i]) ** 2 > k2 * float(step.C_test[i, i]) for i in range(m)]
-    bad = [f and not b for f, b in zip(fails, back, strict=True)]
-    if not any(fails):
-        out = [True] * m  # the joint test alone: nothing to single out
-    elif any(bad):
-        # n_removed counts the updates in a row that left row i out (a rejection leaves every row out)
-        were_out = [memory.n_removed[i] > 1 for i in range(m)]
-        out = [f or w for f, w in zip(bad, were_out, strict=True)]
-    else:
-        out = [False] * m  # only returns fail: the update takes every row
+    return fails, [f and not b for f, b in zip(fails, back, strict=True)]
+
+
+def _rows_update(step: _Step, out: list[bool], alarm: bool) -> _Result:
+    """Section 1 on the rows not in ``out``; every row out rejects the update. The report's w
+    stays 1."""
+    m = step.m
     kept = [i for i in range(m) if not out[i]]
     if not kept:
         everything = (True,) * m
-        return step.x, step.P, _outcome(m, detected=True, rejected=True, alarm=True, left_out=everything)
+        return step.x, step.P, _outcome(m, detected=alarm, rejected=True, alarm=alarm, left_out=everything)
     H_k, R_k = step.H[kept], step.R[np.ix_(kept, kept)]
     x, P = _gain_update(step.x, step.P, H_k, step.nu[kept], H_k @ step.P @ H_k.T + R_k, R_k)
-    return x, P, _outcome(step.m, detected=True, alarm=True, left_out=tuple(out))
+    return x, P, _outcome(m, detected=alarm, alarm=alarm, left_out=tuple(out))
+
+
+def fuzzy_rows_failed(
+    cfg: RobustConfig, state: RobustState, nu_t: np.ndarray, C_t: np.ndarray
+) -> tuple[bool, ...]:
+    """The rows a fuzzy-rows update tested on (nu_t, C_t) would leave out for failing their own
+    test, if it alarms (ALGORITHMS.md 5, the N/E pair): not the rows only kept out, and none when
+    no row fails or the detector does not alarm. Reads ``state``, changes nothing."""
+    nu_t = _as_float_array("test nu", nu_t, 1)
+    C_t = _as_float_array("test C", C_t, 2)
+    m = int(nu_t.shape[0])
+    if cfg.mode != "fuzzy" or cfg.fuzzy_reject != FUZZY_ROWS:
+        return (False,) * m
+    C_t = 0.5 * (C_t + C_t.T)
+    y = _forward_substitution(_cholesky(C_t), nu_t)
+    T = float(y @ y)
+    _, alarm, _ = fuzzy_detector_step(state.d_k, state.alarm, T, m, True)
+    if not alarm:
+        return (False,) * m
+    onset = not state.alarm and state.d_k >= 0.5
+    nu_prev = np.array(state.nu_mean[:m], dtype=np.float64) if onset else None
+    empty = np.zeros((m, 0))
+    step = _Step(
+        x=np.zeros(0), P=np.zeros((0, 0)), H=empty, R=np.eye(m), nu=nu_t, C=C_t, T=T, nu_test=nu_t, C_test=C_t
+    )
+    _, bad = _fuzzy_row_tests(step, nu_prev)
+    return tuple(bad)
 
 
 def _update_igg3(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
@@ -765,8 +808,12 @@ def robust_update(
     cfg: RobustConfig,
     state: RobustState,
     test: tuple[np.ndarray, np.ndarray] | None = None,
+    pair_out: tuple[bool, ...] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, RobustReport]:
     """Measurement update in the mode ``cfg.mode`` (ALGORITHMS.md 5).
+
+    ``pair_out`` (fuzzy rows only; m flags): rows this update leaves out whatever its alarm, the
+    paired horizontal axis' failing rows (``fuzzy_rows_failed``; ALGORITHMS.md 5, the N/E pair).
 
     ``test = (nu_t, C_t)``: the mode tests this innovation and covariance (incl. R) instead of
     the update's own (ALGORITHMS.md 5, test innovation): T, IGG-III residuals and AKF row
@@ -807,7 +854,20 @@ def robust_update(
         C_t = 0.5 * (C_t + C_t.T)
         y = _forward_substitution(_cholesky(C_t), nu_t)
         T = float(y @ y)
-    step = _Step(x=x, P=P, H=H, R=R, nu=nu, C=C, T=T, nu_test=nu_t, C_test=C_t)
+    if pair_out is not None and len(pair_out) != nu.size:
+        raise BadArgError(f"pair_out has {len(pair_out)} rows, the update {nu.size}")
+    step = _Step(
+        x=x,
+        P=P,
+        H=H,
+        R=R,
+        nu=nu,
+        C=C,
+        T=T,
+        nu_test=nu_t,
+        C_test=C_t,
+        pair_out=None if pair_out is None else tuple(bool(v) for v in pair_out),
+    )
     with np.errstate(over="ignore", invalid="ignore"):  # every result is checked for finiteness
         x_plus, P_plus, outcome = _MODE_UPDATES[cfg.mode](step, cfg, memory)
     # Lock-up guard (ALGORITHMS.md 5): the reject_reset_n-th rejection in a row, or the
