@@ -20,10 +20,11 @@ float mca_kf_row_apply(const float *xs, const float *ps, float *xn, float *pn, c
 void mca_kf_plain_memory(mca_robust_state_t *rs, size_t m, float t_stat);
 
 /* Fuzzy rows (rc: mode fuzzy, fuzzy_reject 2; not checked): the rows an update tested on nu_t,
- * c_t (m x m, 1 <= m <= MCA_MEAS_MAX) would leave out for failing their own test while alarmed
- * (docs/ALGORITHMS.md 5), bit j for row j; 0 when it would not alarm, when no row fails (a
- * whole rejection) and when C_t is refused or T is not finite (the update reports those).
- * Rows only kept out are not in it. Reads rc and rs; ws: 3 m^2 floats of scratch. */
+ * c_t (m x m, 1 <= m <= MCA_MEAS_MAX) would leave out while alarmed for failing their own test,
+ * and the rows it keeps out that went out no later than the longest-out failing one (a fault of
+ * both; docs/ALGORITHMS.md 5, the N/E pair), bit j for row j. 0 when it would not alarm, when no
+ * row fails (a whole rejection), and when C_t is refused or T is not finite (the update reports
+ * those). Reads rc and rs; ws: 3 m^2 floats of scratch. */
 unsigned mca_kf_fuzzy_failed(const mca_robust_config_t *rc, const mca_robust_state_t *rs, const float *nu_t,
                              const float *c_t, size_t m, float *ws);
 

@@ -48,13 +48,13 @@ MCA_COLD void mca_nav_config_default(mca_nav_config_t *c)
     mca_copy_bytes(c, &d, sizeof d);
 }
 
+/* The presets change only what differs from the defaults (course-over-ground yaw and the 30 deg
+ * initial yaw std are the defaults' too). */
 MCA_COLD void mca_nav_config_fixedwing(mca_nav_config_t *c)
 {
     mca_nav_config_default(c);
-    c->yaw_source = MCA_YAW_COG;
     c->cog_min_speed_mps = 5.0f;
     c->cs_h.a_max_mps2 = 8.0f;
-    c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
 }
 
 MCA_COLD void mca_nav_config_multirotor(mca_nav_config_t *c)
@@ -64,7 +64,6 @@ MCA_COLD void mca_nav_config_multirotor(mca_nav_config_t *c)
     c->nogps_centripetal = 0u; /* a multirotor does not move along its nose */
     c->cs_h.a_max_mps2 = 5.0f;
     c->cs_lag_s = 0.3f;
-    c->att.yaw0_var_rad2 = (30.0f * DEG) * (30.0f * DEG);
 }
 
 /* A configured duration in integer microseconds (ALGORITHMS.md 8, Times). Durations are

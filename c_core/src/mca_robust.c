@@ -204,7 +204,8 @@ typedef struct {
     float d_k;         /* fuzzy: D_k after this update */
     float q_scale;     /* AKF: Q factor after this update; 1 in other modes */
     float e_new;       /* AKF: this epoch's nu^T nu - tr(R) */
-    unsigned failed;   /* fuzzy rows: rows out for failing their own test (none without alarm) */
+    unsigned failed;   /* fuzzy rows, for the pair: rows out for failing, and those kept out with
+                          them (none without an alarm) */
 } mca_plan_t;
 
 /* FTA (paper 000): gamma = T / chi2_m(1e-4) above the threshold, else 1. */
@@ -260,14 +261,25 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
         if (alarm != 0u) {
             const float k2 = mca_chi2_quantile(1u, MCA_CHI2_5E3);
             const int onset = rs->alarm == 0u && rs->d_k >= 0.5f;
-            unsigned fail = 0u, back = 0u, was = 0u;
+            unsigned fail = 0u, out = 0u, was = 0u, n_out = 2u;
             for (size_t j = 0; j < m; ++j) {
-                fail |= (unsigned)(nu[j] * nu[j] > k2 * c[j * m + j]) << j;
-                back |= (unsigned)(onset && nu[j] * rs->nu_mean[j] < 0.0f) << j;
-                was |= (unsigned)(rs->n_removed[j] > 1u) << j;
+                const unsigned n = rs->n_removed[j], bit = 1u << j;
+                if (nu[j] * nu[j] > k2 * c[j * m + j]) {
+                    fail |= bit;
+                    if (!(onset && nu[j] * rs->nu_mean[j] < 0.0f)) {
+                        out |= bit;
+                        n_out = n > n_out ? n : n_out;
+                    }
+                }
+                was |= n > 1u ? bit : 0u;
             }
-            pl->failed = fail & ~back;
-            drop |= fail == 0u ? pl->keep : pl->failed != 0u ? pl->failed | was : 0u;
+            drop |= fail == 0u ? pl->keep : out != 0u ? out | was : 0u;
+            /* for the pair: the failing rows, and the rows kept out that went out no later than
+             * any of them (a fault of both), not a row that went out on its own after them */
+            for (size_t j = 0; j < m && out != 0u; ++j) {
+                pl->failed |= rs->n_removed[j] >= n_out ? 1u << j : 0u;
+            }
+            pl->failed |= out;
         }
         pl->keep &= ~drop;
         pl->rejected = pl->keep == 0u;

@@ -1093,10 +1093,10 @@ static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
 }
 
 /* Fuzzy rows' N/E pair (ALGORITHMS.md 5): mca_kf_fuzzy_failed gives the rows an alarmed update
- * would leave out for failing their own test (not the rows only kept out; none without an alarm
- * or when no row fails alone) and changes nothing; the rows in rs.started go out of the next
- * fuzzy-rows update, alarmed or not, which then clears them. H = I, P = I, R = 0.1 I: the test
- * innovation is z, C = 1.1 I. */
+ * would leave out for failing their own test, with the rows kept out that went out no later
+ * (none without an alarm or when no row fails alone), and changes nothing; the rows in
+ * rs.started go out of the next fuzzy-rows update, alarmed or not, which then clears them.
+ * H = I, P = I, R = 0.1 I: the test innovation is z, C = 1.1 I. */
 static void test_fuzzy_rows_pair(void)
 {
     mca_robust_config_t rc;
@@ -1114,8 +1114,14 @@ static void test_fuzzy_rows_pair(void)
     rs.d_k = 1.9f;
     /* each row 2.48 sigma alone (< 2.81), T = 12.3 > TD2: alarmed, nothing singled out */
     CHECK_EQ_INT((int)mca_kf_fuzzy_failed(&rc, &rs, both, c_t, 2u, g_ws), 0);
-    rs.n_removed[1] = 2u; /* row 1 out on the last two updates: kept out, but not failing */
+    /* row 1 kept out (out on the last two updates, not failing): with row 0 when it went out no
+     * later than row 0, not when it went out on its own after row 0 */
+    rs.n_removed[1] = 2u;
+    CHECK_EQ_INT((int)mca_kf_fuzzy_failed(&rc, &rs, big0, c_t, 2u, g_ws), 3);
+    rs.n_removed[0] = 5u;
     CHECK_EQ_INT((int)mca_kf_fuzzy_failed(&rc, &rs, big0, c_t, 2u, g_ws), 1);
+    rs.n_removed[0] = 2u;
+    CHECK_EQ_INT((int)mca_kf_fuzzy_failed(&rc, &rs, big0, c_t, 2u, g_ws), 3);
 
     const float h[4] = {1.0f, 0.0f, 0.0f, 1.0f}, r[4] = {0.1f, 0.0f, 0.0f, 0.1f};
     mca_update_report_t rep;

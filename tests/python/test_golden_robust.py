@@ -583,7 +583,8 @@ def test_fuzzy_rows_apply_the_return_from_a_spike() -> None:
 
 def test_fuzzy_rows_pair() -> None:
     """The N/E pair of fuzzy rows (ALGORITHMS.md 5): ``fuzzy_rows_failed`` gives the rows an
-    alarmed update would leave out for failing alone, reads the memory and changes nothing; an
+    alarmed update would leave out for failing alone, with the rows kept out that went out no
+    later, reads the memory and changes nothing; an
     update's ``pair_out`` rows go out whether or not it alarms. H = I, P = I, R = 0.1 I."""
     cfg = RobustConfig("fuzzy", fuzzy_reject=2)
     C = 1.1 * np.eye(2)
@@ -594,7 +595,9 @@ def test_fuzzy_rows_pair() -> None:
     assert st.d_k == 0.0 and not st.alarm and not st.nu_mean.any() and st.n_removed == [0] * len(st.n_removed)
     st.alarm, st.d_k = True, 1.9
     assert fuzzy_rows_failed(cfg, st, [2.6, 2.6], C) == (False, False)  # nothing singled out
-    st.n_removed[1] = 2  # kept out, but not failing
+    st.n_removed[1] = 2  # kept out, not failing: with row 0 if it went out no later
+    assert fuzzy_rows_failed(cfg, st, [100.0, 0.1], C) == (True, True)
+    st.n_removed[0] = 5  # row 1 went out on its own, after row 0
     assert fuzzy_rows_failed(cfg, st, [100.0, 0.1], C) == (True, False)
 
     H, R, x0, P0 = np.eye(2), 0.1 * np.eye(2), np.zeros(2), np.eye(2)

@@ -722,9 +722,10 @@ def _rows_update(step: _Step, out: list[bool], alarm: bool) -> _Result:
 def fuzzy_rows_failed(
     cfg: RobustConfig, state: RobustState, nu_t: np.ndarray, C_t: np.ndarray
 ) -> tuple[bool, ...]:
-    """The rows a fuzzy-rows update tested on (nu_t, C_t) would leave out for failing their own
-    test, if it alarms (ALGORITHMS.md 5, the N/E pair): not the rows only kept out, and none when
-    no row fails or the detector does not alarm. Reads ``state``, changes nothing."""
+    """The rows a fuzzy-rows update tested on (nu_t, C_t) would leave out, if it alarms, for
+    failing their own test, and the rows it keeps out that went out with them (ALGORITHMS.md 5,
+    the N/E pair); none when no row fails or the detector does not alarm. Reads ``state``,
+    changes nothing."""
     nu_t = _as_float_array("test nu", nu_t, 1)
     C_t = _as_float_array("test C", C_t, 2)
     m = int(nu_t.shape[0])
@@ -743,7 +744,12 @@ def fuzzy_rows_failed(
         x=np.zeros(0), P=np.zeros((0, 0)), H=empty, R=np.eye(m), nu=nu_t, C=C_t, T=T, nu_test=nu_t, C_test=C_t
     )
     _, bad = _fuzzy_row_tests(step, nu_prev)
-    return tuple(bad)
+    if not any(bad):
+        return (False,) * m
+    # with them, the rows kept out (out on the last two updates) that went out no later than the
+    # longest-out failing row: the other part of a fault of both, not a row out on its own since
+    longest = max(state.n_removed[i] for i in range(m) if bad[i])
+    return tuple(bad[i] or (state.n_removed[i] > 1 and state.n_removed[i] >= longest) for i in range(m))
 
 
 def _update_igg3(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Result:
