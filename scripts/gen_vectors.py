@@ -396,6 +396,7 @@ _CS_FIELDS = [
     "dt_max_s",
 ]
 KEEP = 0xFFFFFFFF
+ROB_FUZZY_ROWS = 0x0203  # NAV_INIT_PRESET's CS robust mode for the fuzzy-rows profile (replay_main.c)
 
 
 def cs_config_words(c: dict) -> tuple[str, list]:
@@ -685,18 +686,21 @@ def nav_events(
     latency_s: float = 0.08,
     mag: bool = False,
     gps_vd: bool = True,
+    faults: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> NavEvents:
+    """The sensors of a truth; ``faults``: (position, velocity) offsets (n, 3) added to the fixes."""
     n = len(tr.t)
+    pos_fault, vel_fault = faults if faults is not None else (np.zeros((n, 3)), np.zeros((n, 3)))
     t_us = t0_us + np.round(tr.t * 1e6).astype(np.int64)
     gyro_bias = np.array([0.004, -0.003, 0.002])
     gyro = tr.gyro + gyro_bias + rng.normal(0, 0.003, (n, 3))
     accel = tr.f_b + np.array([0.05, -0.04, 0.03]) + rng.normal(0, 0.06, (n, 3))
     step = int(round(GPS_DT / IMU_DT))
-    lat, lon, alt = ned_to_geodetic(tr.pos + rng.normal(0, 1, (n, 3)) * [0.8, 0.8, 1.5])
+    lat, lon, alt = ned_to_geodetic(tr.pos + rng.normal(0, 1, (n, 3)) * [0.8, 0.8, 1.5] + pos_fault)
     gps = []
     for k in range(step, n, step):
         t_rx = int(t_us[k] + round((latency_s + rng.uniform(-0.01, 0.01)) * 1e6))
-        vel = tr.vel[k] + rng.normal(0, 0.08, 3)
+        vel = tr.vel[k] + rng.normal(0, 0.08, 3) + vel_fault[k]
         flags = 1 | (2 if gps_vd else 0) | 4
         gps.append([t_rx, int(t_us[k]), int(lat[k]), int(lon[k]), int(alt[k]), vel, 1.2, 2.0, 0.15, flags, 3])
     mags = []
@@ -783,6 +787,39 @@ def scenario_nav_turns() -> VecWriter:
     w = VecWriter()
     op_nav_init(w, 1)
     nav_ops(w, nav_events(tr, rng, t0_us=20_000_000, latency_s=0.12))
+    return w
+
+
+def scenario_nav_outliers() -> VecWriter:
+    """Fixed-wing turns under GNSS faults with the fuzzy-rows profile on the CS axes (the N/E pair,
+    coasting; docs/ALGORITHMS.md 5) and fuzzy-reject on the attitude filter: a 20 m position burst
+    at an azimuth of 20 degrees (N 18.8 m, E 6.8 m), a 2 m/s velocity burst, a burst of both, a
+    single velocity spike."""
+    rng = np.random.default_rng(7007)
+    tr = make_truth(
+        IMU_DT,
+        9.0,
+        speed_acc=[(1.2, 0.5, 6.0), (3.5, 0.5, -6.0)],
+        yaw_rate=[(4.2, 0.6, 0.3), (6.0, 0.6, -0.6), (7.8, 0.6, 0.3)],
+        down_acc=[(4.0, 0.5, -1.0), (5.0, 0.5, 1.0)],
+        vehicle="plane",
+    )
+    n = len(tr.t)
+    pos_f, vel_f = np.zeros((n, 3)), np.zeros((n, 3))
+
+    def burst(t0: float, t1: float, p_m: float, v_mps: float, az_deg: float) -> None:
+        u = np.array([np.cos(np.radians(az_deg)), np.sin(np.radians(az_deg)), 0.0])
+        sel = (tr.t >= t0) & (tr.t < t1)
+        pos_f[sel] += p_m * u
+        vel_f[sel] += v_mps * u
+
+    burst(4.0, 5.0, 20.0, 0.0, 20.0)
+    burst(5.5, 6.5, 0.0, 2.0, 200.0)
+    burst(7.0, 7.6, 15.0, 1.5, 120.0)
+    burst(8.0, 8.05, 0.0, 3.0, 300.0)
+    w = VecWriter()
+    op_nav_init(w, 1, rob_cs=ROB_FUZZY_ROWS, rob_att=3)
+    nav_ops(w, nav_events(tr, rng, t0_us=30_000_000, latency_s=0.12, faults=(pos_f, vel_f)))
     return w
 
 
@@ -939,6 +976,7 @@ SCENARIOS = {
     "nav_accel_brake": scenario_nav_accel_brake,
     "nav_turns": scenario_nav_turns,
     "nav_random": scenario_nav_random,
+    "nav_outliers": scenario_nav_outliers,
     "ins_fixedwing_turns": scenario_ins_fixedwing_turns,
 }
 

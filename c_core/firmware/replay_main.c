@@ -321,6 +321,7 @@ static void op_cs3_update(in_t *in, out_t *out)
 /* ---------------------------------------------------------------- navigation ops (mca_nav.h) */
 
 #define RPL_KEEP 0xFFFFFFFFu
+#define RPL_ROB_FUZZY_ROWS 0x0203u /* CS robust "mode": the fuzzy-rows profile */
 
 /* in: u32 preset (0 default, 1 fixed-wing, 2 multirotor; anything else passes a NULL
  * config), u32 comp_mode, u32 yaw_source, u32 CS robust mode, u32 attitude robust mode
@@ -343,7 +344,17 @@ static void op_nav_init_preset(in_t *in, out_t *out)
     if (yaw != RPL_KEEP) {
         cfg.yaw_source = (uint8_t)(yaw > 255u ? 255u : yaw);
     }
-    if (rob_cs != RPL_KEEP) {
+    if (rob_cs == RPL_ROB_FUZZY_ROWS) {
+        /* the fuzzy-rows profile (docs/ALGORITHMS.md 5, python core.robust_profile) at 10 Hz */
+        mca_cs_config_t *const cs[2] = {&cfg.cs_h, &cfg.cs_v};
+        for (size_t i = 0; i < 2u; ++i) {
+            cs[i]->robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
+            cs[i]->robust.fuzzy_reject = 2u;
+            cs[i]->robust.reject_reset_n = 200u;
+            cs[i]->robust.row_reset_n = 0u;
+            cs[i]->coast = 1u;
+        }
+    } else if (rob_cs != RPL_KEEP) {
         cfg.cs_h.robust.mode = (uint8_t)(rob_cs > 255u ? 255u : rob_cs);
         cfg.cs_v.robust.mode = cfg.cs_h.robust.mode;
     }
