@@ -301,6 +301,55 @@ static void test_ne_pair_leaves_the_partner_rows_out(void)
     }
 }
 
+/* The N/E pair shares the rows kept out that went out with the failing ones (a fault of both:
+ * N's velocity, out with its position, passes again while the position fails; E leaves its
+ * velocity out too), not a row that went out on its own later (N's velocity failing twice well
+ * into a position fault; E keeps its velocity). */
+static void test_ne_pair_shares_the_rows_out_with_the_failing_ones(void)
+{
+    mca_cs_config_t h, v;
+    mca_cs_config_default_h(&h);
+    mca_cs_config_default_v(&v);
+    h.coast = 1u;
+    h.robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
+    h.robust.fuzzy_reject = 2u;
+    h.robust.reject_reset_n = 100u;
+    h.robust.row_reset_n = 0u;
+    const float t = 0.2f;
+    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f};
+    const mca_cs_inc_t *const incs[3] = {&inc, &inc, &inc};
+    float ws[MCA_CS_WS_LEN];
+    const float r_pos[3] = {1.0f, 1.0f, 4.0f}, r_vel[3] = {0.01f, 0.01f, 0.04f};
+    const uint8_t both = MCA_CS_POS | MCA_CS_VEL, mask[3] = {both, both, both};
+    /* N's offsets from fix 31 on: position, velocity; then E's velocity row out after that fix */
+    const struct {
+        float dp, dv;
+        int e_vel_out;
+    } together[] = {{50.0f, 3.0f, 1}, {50.0f, 3.0f, 1}, {50.0f, 0.0f, 1}, {50.0f, 0.0f, 1}},
+      later[] = {{50.0f, 0.0f, 0}, {50.0f, 0.0f, 0}, {50.0f, 0.0f, 0}, {50.0f, 0.0f, 0}, {50.0f, 0.0f, 0},
+                 {50.0f, 3.0f, 1}, {50.0f, 3.0f, 1}, {50.0f, 0.0f, 0}};
+    for (int c = 0; c < 2; ++c) {
+        mca_cs3_t cs;
+        const float p0[3] = {0.0f, 0.0f, 0.0f}, v0[3] = {5.0f, 0.0f, 0.0f};
+        CHECK_EQ_INT(mca_cs3_init(&cs, &h, &v, p0, v0), MCA_OK);
+        const size_t n_steps = c == 0 ? sizeof together / sizeof together[0] : sizeof later / sizeof later[0];
+        for (size_t n = 1; n <= 30u + n_steps; ++n) {
+            CHECK_EQ_INT(mca_cs3_predict_aided(&cs, t, incs), MCA_OK);
+            const size_t k = n > 30u ? n - 31u : 0u;
+            const float dp = n > 30u ? (c == 0 ? together[k].dp : later[k].dp) : 0.0f;
+            const float dv = n > 30u ? (c == 0 ? together[k].dv : later[k].dv) : 0.0f;
+            const float pos[3] = {5.0f * t * (float)n + dp, 0.0f, 0.0f}, vel[3] = {5.0f + dv, 0.0f, 0.0f};
+            CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, r_pos, r_vel, mask, ws, NULL), MCA_OK);
+            if (n > 30u) {
+                CHECK_EQ_INT(cs.axis[0].rs.n_removed[0], (int)k + 1); /* N's position out throughout */
+                CHECK_EQ_INT(cs.axis[1].rs.n_removed[1] > 0u, c == 0 ? together[k].e_vel_out : later[k].e_vel_out);
+            }
+        }
+        /* N keeps its own velocity out either way: it was out on the last two updates */
+        CHECK(cs.axis[0].rs.n_removed[1] > 0u);
+    }
+}
+
 int main(void)
 {
     test_shared_ne_update_same_bits();
@@ -310,5 +359,6 @@ int main(void)
     test_coasting_predict();
     test_coast_starts_when_the_velocity_is_out();
     test_ne_pair_leaves_the_partner_rows_out();
+    test_ne_pair_shares_the_rows_out_with_the_failing_ones();
     TEST_MAIN_END();
 }

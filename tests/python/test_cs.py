@@ -534,6 +534,7 @@ def _golden_pair_run(tracks: list[tuple[np.ndarray, ...]], pair: bool, c: core.C
     out = [False, False]
     n = len(tracks[0][0])
     pos_out = np.zeros((n, 2), bool)
+    vel_out = np.zeros((n, 2), bool)
     herr = np.zeros((n, 2))
     worst = 0.0
     H = np.array([[1.0, 0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 0.0, 1.0]])
@@ -563,6 +564,7 @@ def _golden_pair_run(tracks: list[tuple[np.ndarray, ...]], pair: bool, c: core.C
             if rep.rejected and not out[i]:  # the coast starts from the IMU-aided prediction
                 g.x[0], g.x[1] = y[0] - g.x[3], y[1] - g.x[4]
             out[i] = bool(rep.rejected) or states[i].n_removed[1] > 0
+            vel_out[k, i] = out[i]
             pos_out[k, i] = bool(rep.rejected) or states[i].n_removed[0] > 0
             herr[k, i] = abs(float(g.x[0]) - tracks[i][4][k])
             reps.append(rep)
@@ -585,7 +587,7 @@ def _golden_pair_run(tracks: list[tuple[np.ndarray, ...]], pair: bool, c: core.C
             sd = np.sqrt(np.diag(g.P))
             worst = max(worst, float(np.max(np.abs(c.x[i] - g.x) / sd)))
             worst = max(worst, float(np.max(np.abs(c.P[i] - g.P) / np.outer(sd, sd))))
-    return {"pos_out": pos_out, "herr": herr, "worst": worst}
+    return {"pos_out": pos_out, "vel_out": vel_out, "herr": herr, "worst": worst}
 
 
 def test_fuzzy_rows_pair_matches_golden() -> None:
@@ -594,7 +596,9 @@ def test_fuzzy_rows_pair_matches_golden() -> None:
     GPS sigma, and 0.3 m/s against 0.1). C against the golden composition (fuzzy_rows_failed of
     both axes first, then each update with the other's failing rows out) fix by fix: the same
     decisions, x and P within float32 rounding. And what the pair is for: the position fault that
-    N alarms on is left out of E too, where E alone lets it in part-way."""
+    N alarms on is left out of E too, where E alone lets it in part-way; and a fault of both
+    whose velocity part ends early: N keeps its velocity out while the position fails, and E's
+    goes out with it."""
     az = np.radians(8.0)
     tracks = [_fuzzy_rows_track(5, float(np.cos(az))), _fuzzy_rows_track(6, float(np.sin(az)))]
     robust = {"mode": core.lib.MCA_ROBUST_FUZZY, "fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}
@@ -610,6 +614,24 @@ def test_fuzzy_rows_pair_matches_golden() -> None:
     print(f"  position out {out_pair:.0%} of it with the pair, {out_alone:.0%} alone")
     assert paired["worst"] <= 1e-3
     assert paired["pos_out"][101:180, 1].all()  # out with N's, from N's first alarmed fix on
+    # the fault of both with its velocity part over its first three fixes only: N's velocity, out
+    # with the position, passes from fix 223 but is kept out while the position fails, and E's
+    # goes out with it (the rows kept out that went out with the failing ones)
+    cut = []
+    for tr, share in zip(tracks, (np.cos(az), np.sin(az)), strict=True):
+        zv = tr[1].copy()
+        zv[223:250] -= 2.0 * float(share)
+        cut.append((tr[0], zv, *tr[2:]))
+    c2 = core.Cs3(
+        core.cs_config(False, coast=1, robust=robust), core.cs_config(True), [0.0, 0.0, 0.0], [8.0, 8.0, 0.0]
+    )
+    both = _golden_pair_run(cut, True, c2)
+    cut_alone = _golden_pair_run(cut, False)
+    e_both, e_cut_alone = both["vel_out"][223:250, 1].sum(), cut_alone["vel_out"][223:250, 1].sum()
+    print(f"  fault of both, velocity 3 fixes: C vs golden {both['worst']:.1e} sd; E's velocity out on")
+    print(f"  {e_both} of the 27 fixes after them with the pair, {e_cut_alone} alone")
+    assert both["worst"] <= 1e-3
+    assert both["vel_out"][223:250, 0].all() and both["vel_out"][223:240, 1].all() and e_cut_alone < 5
     assert not paired["pos_out"][:100].any()  # nothing wrong, nothing left out
     assert e_pair < 2.0 and e_alone > 2.0 * e_pair
 
