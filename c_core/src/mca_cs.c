@@ -586,10 +586,10 @@ MCA_NOINLINE static int axis_update_shared(mca_cs_axis_t *ax, const float p_post
 }
 
 /* Fuzzy rows on N and E, both tested against their IMU-aided predictions on position and
- * velocity (docs/ALGORITHMS.md 5, the pair): the rows an alarmed axis' update will leave out for failing
- * their own test go out of the other axis' update too (rs.started). A GNSS fault moves the
- * horizontal solution as one; how it splits between N and E is the fault's azimuth. Nothing is
- * written unless both axes qualify. */
+ * velocity (docs/ALGORITHMS.md 5, the N/E pair): the rows an alarmed axis' update will leave out
+ * for failing their own test, with the rows it keeps out that went out with them, go out of the
+ * other axis' update too (rs.started). A GNSS fault moves the horizontal solution as one; how it
+ * splits between N and E is the fault's azimuth. Nothing is written unless both axes qualify. */
 MCA_NOINLINE static void pair_rows(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
                                    const float r_vel[3], const uint8_t mask[3], float *ws)
 {

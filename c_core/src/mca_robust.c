@@ -74,8 +74,8 @@ size_t mca_kf_ws_len(size_t n, size_t m)
  * Only the modes that use the memory check it. */
 static int memory_ok(const mca_robust_state_t *rs)
 {
-    if (rs->win_n > MCA_AKF_WINDOW || rs->win_head >= MCA_AKF_WINDOW || rs->alarm > 1u || rs->started >= (1u << MCA_MEAS_MAX) ||
-        rs->n_reject == UINT8_MAX) {
+    if (rs->win_n > MCA_AKF_WINDOW || rs->win_head >= MCA_AKF_WINDOW || rs->alarm > 1u ||
+        rs->started >= (1u << MCA_MEAS_MAX) || rs->n_reject == UINT8_MAX) {
         return 0;
     }
     for (size_t i = 0; i < MCA_MEAS_MAX; ++i) {

@@ -192,15 +192,22 @@ static void test_coasting_predict(void)
  * position left out while the velocity is applied does not; a rejected update does, and the
  * coast starts from the IMU-aided prediction, not the acceleration state's; a velocity out on
  * one update only comes back while the position still fails, and the coast ends. */
+/* The horizontal defaults with the fuzzy-rows profile (docs/ALGORITHMS.md 5): fuzzy rows,
+ * coasting, the 20 s guard at 5 Hz, no row guard. */
+static void fuzzy_rows_config(mca_cs_config_t *h)
+{
+    mca_cs_config_default_h(h);
+    h->coast = 1u;
+    h->robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
+    h->robust.fuzzy_reject = 2u;
+    h->robust.reject_reset_n = 100u;
+    h->robust.row_reset_n = 0u;
+}
+
 static void test_coast_starts_when_the_velocity_is_out(void)
 {
     mca_cs_config_t h;
-    mca_cs_config_default_h(&h);
-    h.coast = 1u;
-    h.robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
-    h.robust.fuzzy_reject = 2u;
-    h.robust.reject_reset_n = 100u;
-    h.robust.row_reset_n = 0u;
+    fuzzy_rows_config(&h);
     CHECK_EQ_INT(mca_cs_config_check(&h), MCA_OK);
     mca_cs_axis_t ax;
     CHECK_EQ_INT(mca_cs_axis_init(&ax, &h, 0.0f, 5.0f), MCA_OK);
@@ -255,13 +262,8 @@ static void test_coast_starts_when_the_velocity_is_out(void)
 static void test_ne_pair_leaves_the_partner_rows_out(void)
 {
     mca_cs_config_t h, v;
-    mca_cs_config_default_h(&h);
+    fuzzy_rows_config(&h);
     mca_cs_config_default_v(&v);
-    h.coast = 1u;
-    h.robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
-    h.robust.fuzzy_reject = 2u;
-    h.robust.reject_reset_n = 100u;
-    h.robust.row_reset_n = 0u;
     const float t = 0.2f;
     const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f}; /* the IMU: no acceleration */
     const mca_cs_inc_t *const incs[3] = {&inc, &inc, &inc};
@@ -308,13 +310,8 @@ static void test_ne_pair_leaves_the_partner_rows_out(void)
 static void test_ne_pair_shares_the_rows_out_with_the_failing_ones(void)
 {
     mca_cs_config_t h, v;
-    mca_cs_config_default_h(&h);
+    fuzzy_rows_config(&h);
     mca_cs_config_default_v(&v);
-    h.coast = 1u;
-    h.robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
-    h.robust.fuzzy_reject = 2u;
-    h.robust.reject_reset_n = 100u;
-    h.robust.row_reset_n = 0u;
     const float t = 0.2f;
     const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f};
     const mca_cs_inc_t *const incs[3] = {&inc, &inc, &inc};
