@@ -687,7 +687,7 @@ def _fuzzy_rows_out(step: _Step, memory: RobustState, nu_prev: np.ndarray | None
     the outlier that epoch took in: it does not count as failing (if only such rows fail, the
     update takes every row)."""
     m = step.m
-    fails, bad = _fuzzy_row_tests(step, nu_prev)
+    fails, bad = _fuzzy_row_tests(step.nu_test, step.C_test, nu_prev)
     if not any(fails):
         return [True] * m
     if any(bad):
@@ -697,13 +697,24 @@ def _fuzzy_rows_out(step: _Step, memory: RobustState, nu_prev: np.ndarray | None
     return [False] * m  # only returns fail: the update takes every row
 
 
-def _fuzzy_row_tests(step: _Step, nu_prev: np.ndarray | None) -> tuple[list[bool], list[bool]]:
-    """Per row: fails its own test; fails and is not a return (see ``_fuzzy_rows_out``)."""
-    m = step.m
+def _fuzzy_row_tests(
+    nu_t: np.ndarray, C_t: np.ndarray, nu_prev: np.ndarray | None
+) -> tuple[list[bool], list[bool]]:
+    """Per row of the test innovation: fails its own test; fails and is not a return (see
+    ``_fuzzy_rows_out``)."""
+    m = int(nu_t.shape[0])
     k2 = chi2_quantile(FUZZY_TD2_ALPHA, 1)
-    back = [nu_prev is not None and float(step.nu_test[i]) * float(nu_prev[i]) < 0.0 for i in range(m)]
-    fails = [float(step.nu_test[i]) ** 2 > k2 * float(step.C_test[i, i]) for i in range(m)]
+    back = [nu_prev is not None and float(nu_t[i]) * float(nu_prev[i]) < 0.0 for i in range(m)]
+    fails = [float(nu_t[i]) ** 2 > k2 * float(C_t[i, i]) for i in range(m)]
     return fails, [f and not b for f, b in zip(fails, back, strict=True)]
+
+
+def _test_statistic(nu_t: np.ndarray, C_t: np.ndarray) -> tuple[np.ndarray, float]:
+    """The symmetrised test covariance and T = nu_t^T C_t^-1 nu_t (ALGORITHMS.md 5, test
+    innovation)."""
+    C_t = 0.5 * (C_t + C_t.T)
+    y = _forward_substitution(_cholesky(C_t), nu_t)
+    return C_t, float(y @ y)
 
 
 def _rows_update(step: _Step, out: list[bool], alarm: bool) -> _Result:
@@ -731,19 +742,13 @@ def fuzzy_rows_failed(
     m = int(nu_t.shape[0])
     if cfg.mode != "fuzzy" or cfg.fuzzy_reject != FUZZY_ROWS:
         return (False,) * m
-    C_t = 0.5 * (C_t + C_t.T)
-    y = _forward_substitution(_cholesky(C_t), nu_t)
-    T = float(y @ y)
+    C_t, T = _test_statistic(nu_t, C_t)
     _, alarm, _ = fuzzy_detector_step(state.d_k, state.alarm, T, m, True)
     if not alarm:
         return (False,) * m
     onset = not state.alarm and state.d_k >= 0.5
     nu_prev = np.array(state.nu_mean[:m], dtype=np.float64) if onset else None
-    empty = np.zeros((m, 0))
-    step = _Step(
-        x=np.zeros(0), P=np.zeros((0, 0)), H=empty, R=np.eye(m), nu=nu_t, C=C_t, T=T, nu_test=nu_t, C_test=C_t
-    )
-    _, bad = _fuzzy_row_tests(step, nu_prev)
+    _, bad = _fuzzy_row_tests(nu_t, C_t, nu_prev)
     if not any(bad):
         return (False,) * m
     # with them, the rows kept out (out on the last two updates) that went out no later than the
@@ -857,9 +862,7 @@ def robust_update(
             raise BadArgError(f"test innovation shapes {nu_t.shape}, {C_t.shape} do not match m = {nu.size}")
         if not (np.all(np.isfinite(nu_t)) and np.all(np.isfinite(C_t))):
             raise NonFiniteError("test innovation is not finite")
-        C_t = 0.5 * (C_t + C_t.T)
-        y = _forward_substitution(_cholesky(C_t), nu_t)
-        T = float(y @ y)
+        C_t, T = _test_statistic(nu_t, C_t)
     if pair_out is not None and len(pair_out) != nu.size:
         raise BadArgError(f"pair_out has {len(pair_out)} rows, the update {nu.size}")
     step = _Step(
