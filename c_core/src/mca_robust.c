@@ -211,7 +211,7 @@ typedef struct {
 /* FTA (paper 000): gamma = T / chi2_m(1e-4) above the threshold, else 1. */
 static void plan_fta(mca_plan_t *pl, size_t m, float t_stat)
 {
-    const float thr = mca_chi2_quantile(m, MCA_CHI2_1E4);
+    const float thr = mca_chi2_table[m - 1u][MCA_CHI2_1E4];
     pl->gamma = t_stat <= thr ? 1.0f : t_stat / thr;
     pl->factor = pl->gamma;
     pl->detected = pl->gamma > 1.0f ? 1u : 0u; /* "detected = gamma > 1", as specified */
@@ -223,8 +223,8 @@ static void plan_fta(mca_plan_t *pl, size_t m, float t_stat)
 static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_robust_state_t *rs, size_t m,
                        float t_stat, const float *nu, const float *c, unsigned pair)
 {
-    const float td1 = mca_chi2_quantile(m, MCA_CHI2_2P5E2);
-    const float td2 = mca_chi2_quantile(m, MCA_CHI2_5E3);
+    const float td1 = mca_chi2_table[m - 1u][MCA_CHI2_2P5E2]; /* 1 <= m <= MCA_MEAS_MAX (checked) */
+    const float td2 = mca_chi2_table[m - 1u][MCA_CHI2_5E3];
     const float td3 = 10.0f * td2;
     /* mu = (TD1 / TD3) mu_H + mu_M / 2 + mu_D, piece by piece: a membership that is 0 on a piece
      * adds +0, so each piece is that sum's bits */
@@ -259,7 +259,7 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
          * alarmed or not. */
         unsigned drop = pair;
         if (alarm != 0u) {
-            const float k2 = mca_chi2_quantile(1u, MCA_CHI2_5E3);
+            const float k2 = mca_chi2_table[0][MCA_CHI2_5E3]; /* m = 1 */
             const int onset = rs->alarm == 0u && rs->d_k >= 0.5f;
             unsigned fail = 0u, out = 0u, was = 0u, n_out = 2u;
             for (size_t j = 0; j < m; ++j) {
@@ -303,7 +303,7 @@ static void plan_akf(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_ro
 {
     const float b = rc->akf_forget;
     /* step 2: detection with the chi2_m(1e-2) test; R* = R + diag(s_i) with the new s_i */
-    const int det = t_stat > mca_chi2_quantile(m, MCA_CHI2_1E2);
+    const int det = t_stat > mca_chi2_table[m - 1u][MCA_CHI2_1E2];
     float tr_r = 0.0f, tr_rs = 0.0f, nu2 = 0.0f, tr_hph = 0.0f;
     for (size_t i = 0; i < m; ++i) {
         float r_new, s_new;
@@ -974,6 +974,26 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
     return update_general(x, p, n, h, z, r, m, rc, rs, nu_t, c_t, ws, rep);
 }
 
+/* An empty plan: every row kept, no inflation (the plain update). */
+static void plan_init(mca_plan_t *pl, size_t m)
+{
+    memset(pl, 0, sizeof(*pl));
+    pl->gamma = 1.0f;
+    pl->keep = (1u << m) - 1u;
+    pl->factor = 1.0f;
+    pl->q_scale = 1.0f;
+}
+
+/* C = H (P H^T) + R, symmetrised; u = P H^T (n x m). */
+static void form_c(float *c, const float *h, const float *u, const float *r, size_t n, size_t m)
+{
+    h_times_u(c, h, u, n, m);
+    for (size_t i = 0; i < m * m; ++i) {
+        c[i] += r[i];
+    }
+    mca_mat_symmetrize(c, m);
+}
+
 static mca_status_t update_general(float *x, float *p, size_t n, const float *h, const float *z, const float *r,
                                    size_t m, const mca_robust_config_t *rc, mca_robust_state_t *rs,
                                    const float *nu_t, const float *c_t, float *ws, mca_update_report_t *rep)
@@ -998,12 +1018,8 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     for (size_t i = 0; i < m; ++i) {
         y[i] = z[i] - y[i];
     }
-    p_ht(kk, p, h, n, m);      /* P H^T (P symmetric) */
-    h_times_u(c, h, kk, n, m); /* H P H^T */
-    for (size_t i = 0; i < m * m; ++i) {
-        c[i] += r[i];
-    }
-    mca_mat_symmetrize(c, m);
+    p_ht(kk, p, h, n, m); /* P H^T (P symmetric) */
+    form_c(c, h, kk, r, n, m);
     if (rep != NULL) {
         memset(rep, 0, sizeof(*rep));
         rep->m = (uint8_t)m;
@@ -1043,11 +1059,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
 
     /* The mode's plan (ALGORITHMS.md 5). Nothing outside ws (and rep->w) is written here. */
     mca_plan_t pl;
-    memset(&pl, 0, sizeof(pl));
-    pl.gamma = 1.0f;
-    pl.keep = (1u << m) - 1u;
-    pl.factor = 1.0f;
-    pl.q_scale = 1.0f;
+    plan_init(&pl, m);
     float *d = t; /* per-row R diagonal increment, m values */
     switch (mode) {
     case MCA_ROBUST_FTA:
@@ -1088,17 +1100,9 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     }
     int c_has_d = mode == MCA_ROBUST_IGG3 && !tested; /* IGG-III re-weighted c_m */
     if (reset) {
-        memset(&pl, 0, sizeof(pl));
-        pl.gamma = 1.0f;
-        pl.keep = (1u << m) - 1u;
-        pl.factor = 1.0f;
-        pl.q_scale = 1.0f;
+        plan_init(&pl, m);
         /* C and its factor again without any IGG increment (kk still holds P H^T) */
-        h_times_u(c, h, kk, n, m);
-        for (size_t i = 0; i < m * m; ++i) {
-            c[i] += r[i];
-        }
-        mca_mat_symmetrize(c, m);
+        form_c(c, h, kk, r, n, m);
         if (mca_cholesky(l, c, m) != MCA_OK) {
             return MCA_ERR_SINGULAR;
         }
