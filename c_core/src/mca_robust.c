@@ -252,19 +252,25 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
     pl->detected = alarm;
     if (rows) {
         /* rows (ALGORITHMS.md 5): while alarmed, out go the rows whose own standardised test
-         * residual fails chi2_1(0.005) and, while any does, the rows out on the last two updates;
+         * residual fails chi2_1(0.005) (chi2_1(1e-4) for the last row standing: the one row the
+         * last update applied while it left every other out) and, while any does, the rows out on
+         * the last two updates;
          * none or every row failing rejects the whole update. At the alarm's first epoch after an
          * applied one past TD2 (D_{k-1} >= 0.5), a row whose innovation has the opposite sign of
          * that epoch's is the return from the outlier it took in: applied. The pair rows go out
          * alarmed or not. */
         unsigned drop = pair;
         if (alarm != 0u) {
-            const float k2 = mca_chi2_table[0][MCA_CHI2_5E3]; /* m = 1 */
+            const float k2 = mca_chi2_table[0][MCA_CHI2_5E3], k4 = mca_chi2_table[0][MCA_CHI2_1E4]; /* m = 1 */
             const int onset = rs->alarm == 0u && rs->d_k >= 0.5f;
-            unsigned fail = 0u, out = 0u, was = 0u, n_out = 2u;
+            unsigned fail = 0u, out = 0u, was = 0u, n_out = 2u, prev = 0u;
+            for (size_t j = 0; j < m; ++j) {
+                prev |= rs->n_removed[j] > 0u ? 1u << j : 0u;
+            }
             for (size_t j = 0; j < m; ++j) {
                 const unsigned n = rs->n_removed[j], bit = 1u << j;
-                if (nu[j] * nu[j] > k2 * c[j * m + j]) {
+                const float kj = prev != 0u && bit == (~prev & ((1u << m) - 1u)) ? k4 : k2;
+                if (nu[j] * nu[j] > kj * c[j * m + j]) {
                     fail |= bit;
                     if (!(onset && nu[j] * rs->nu_mean[j] < 0.0f)) {
                         out |= bit;

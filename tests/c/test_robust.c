@@ -1092,6 +1092,47 @@ static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
     }
 }
 
+/* Fuzzy rows' last row standing (ALGORITHMS.md 5): the one row the last update applied while it
+ * left every other row out is tested at chi2_1(1e-4) = 15.1 instead of chi2_1(0.005) = 7.88. H = I,
+ * P = I, R = 0.1 I: C = 1.1 I; row 0 fails at 91 sigma, row 1 at nu^2 / C = 11 or 20. */
+static void test_fuzzy_rows_last_row_standing(void)
+{
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_FUZZY);
+    rc.fuzzy_reject = 2u;
+    rc.reject_reset_n = 100u;
+    mca_update_report_t rep;
+    const float h[4] = {1.0f, 0.0f, 0.0f, 1.0f}, r[4] = {0.1f, 0.0f, 0.0f, 0.1f};
+    const struct {
+        uint8_t out0, out1, n_reject; /* the memory: updates in a row that left each row out */
+        float s2;                     /* row 1's nu^2 / C */
+        int applied1;
+    } cases[] = {
+        {3u, 0u, 0u, 11.0f, 1}, /* row 0 out, row 1 applied: row 1 stands alone, 11 < 15.1 */
+        {0u, 0u, 0u, 11.0f, 0}, /* nothing out before: 11 > 7.88 */
+        {3u, 3u, 3u, 11.0f, 0}, /* both out (rejected): no row stands alone */
+        {3u, 0u, 0u, 20.0f, 0}, /* alone, but 20 > 15.1 */
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        mca_robust_state_t rs;
+        mca_robust_state_init(&rs);
+        rs.alarm = 1u;
+        rs.d_k = 1.9f;
+        rs.n_removed[0] = cases[k].out0;
+        rs.n_removed[1] = cases[k].out1;
+        rs.n_reject = cases[k].n_reject;
+        float x[2] = {0.0f, 0.0f}, p[4];
+        eye(p, 2, 1.0f);
+        const float z[2] = {100.0f, sqrtf(cases[k].s2 * 1.1f)};
+        CHECK_EQ_INT(mca_kf_update(x, p, 2, h, z, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
+        CHECK_EQ_INT(rep.alarm, 1);
+        CHECK(x[0] == 0.0f);                          /* row 0 out */
+        CHECK_EQ_INT(x[1] != 0.0f, cases[k].applied1); /* row 1 applied or out */
+        CHECK_EQ_INT(rep.rejected, !cases[k].applied1);
+        CHECK_EQ_INT(rs.n_removed[1] == 0u, cases[k].applied1);
+    }
+}
+
 /* Fuzzy rows' N/E pair (ALGORITHMS.md 5): mca_kf_fuzzy_failed gives the rows an alarmed update
  * would leave out for failing their own test, with the rows kept out that went out no later
  * (none without an alarm or when no row fails alone), and changes nothing; the rows in
@@ -1175,6 +1216,7 @@ int main(void)
     test_fuzzy_rows_leave_out_the_failing_row();
     test_fuzzy_rows_long_guard_needs_a_test_innovation();
     test_fuzzy_rows_apply_the_return_from_a_spike();
+    test_fuzzy_rows_last_row_standing();
     test_fuzzy_rows_pair();
     TEST_MAIN_END();
 }
