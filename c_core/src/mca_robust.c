@@ -252,9 +252,9 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
     pl->detected = alarm;
     if (rows) {
         /* rows (ALGORITHMS.md 5): while alarmed, out go the rows whose own standardised test
-         * residual fails chi2_1(0.005) (chi2_1(1e-4) for the last row standing: the one row the
-         * last update applied while it left every other out) and, while any does, the rows out on
-         * the last two updates;
+         * residual fails chi2_1(0.005) (2 chi2_1(1e-4) for the last row standing: the one row
+         * the last update applied while it left every other out) and, while any does, the rows
+         * out on the last two updates;
          * none or every row failing rejects the whole update. At the alarm's first epoch after an
          * applied one past TD2 (D_{k-1} >= 0.5), a row whose innovation has the opposite sign of
          * that epoch's is the return from the outlier it took in: applied. The pair rows go out
@@ -269,7 +269,7 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
             }
             for (size_t j = 0; j < m; ++j) {
                 const unsigned n = rs->n_removed[j], bit = 1u << j;
-                const float kj = prev != 0u && bit == (~prev & ((1u << m) - 1u)) ? k4 : k2;
+                const float kj = prev != 0u && bit == (~prev & ((1u << m) - 1u)) ? k4 + k4 : k2;
                 if (nu[j] * nu[j] > kj * c[j * m + j]) {
                     fail |= bit;
                     if (!(onset && nu[j] * rs->nu_mean[j] < 0.0f)) {

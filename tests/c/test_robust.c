@@ -1093,8 +1093,8 @@ static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
 }
 
 /* Fuzzy rows' last row standing (ALGORITHMS.md 5): the one row the last update applied while it
- * left every other row out is tested at chi2_1(1e-4) = 15.1 instead of chi2_1(0.005) = 7.88. H = I,
- * P = I, R = 0.1 I: C = 1.1 I; row 0 fails at 91 sigma, row 1 at nu^2 / C = 11 or 20. */
+ * left every other row out fails above 2 chi2_1(1e-4) = 30.3 instead of chi2_1(0.005) = 7.88.
+ * H = I, P = I, R = 0.1 I: C = 1.1 I; row 0 fails at 91 sigma, row 1 at nu^2 / C = 11, 25 or 40. */
 static void test_fuzzy_rows_last_row_standing(void)
 {
     mca_robust_config_t rc;
@@ -1108,10 +1108,11 @@ static void test_fuzzy_rows_last_row_standing(void)
         float s2;                     /* row 1's nu^2 / C */
         int applied1;
     } cases[] = {
-        {3u, 0u, 0u, 11.0f, 1}, /* row 0 out, row 1 applied: row 1 stands alone, 11 < 15.1 */
+        {3u, 0u, 0u, 11.0f, 1}, /* row 0 out, row 1 applied: row 1 stands alone, 11 < 30.3 */
+        {3u, 0u, 0u, 25.0f, 1}, /* 25 < 30.3 (> chi2_1(1e-4) = 15.1) */
         {0u, 0u, 0u, 11.0f, 0}, /* nothing out before: 11 > 7.88 */
         {3u, 3u, 3u, 11.0f, 0}, /* both out (rejected): no row stands alone */
-        {3u, 0u, 0u, 20.0f, 0}, /* alone, but 20 > 15.1 */
+        {3u, 0u, 0u, 40.0f, 0}, /* alone, but 40 > 30.3 */
     };
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
         mca_robust_state_t rs;

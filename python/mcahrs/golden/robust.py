@@ -170,7 +170,7 @@ FUZZY_TD1_ALPHA = 0.025  # paper 001: TD1 = chi2_m(0.025), "no outlier" below it
 FUZZY_TD2_ALPHA = 0.005  # paper 001: TD2 = chi2_m(0.005), the usual single threshold
 FUZZY_TD3_OVER_TD2 = 10.0  # paper 001: TD3 = 10 TD2, "outlier" above it
 FUZZY_ROWS = 2  # fuzzy_reject value of the rows variant (ALGORITHMS.md 5)
-FUZZY_LAST_ROW_ALPHA = 1e-4  # fuzzy rows: the own-test level of the last row standing (ALGORITHMS.md 5)
+FUZZY_LAST_ROW_ALPHA = 1e-4  # fuzzy rows: the last row standing fails above 2 chi2_1(this) (ALGORITHMS.md 5)
 RESET_N_DEFAULT = 5  # the default lock-up guard, and fuzzy rows' without a test innovation
 
 
@@ -678,8 +678,8 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
 
 def _fuzzy_rows_out(step: _Step, memory: RobustState, nu_prev: np.ndarray | None) -> list[bool]:
     """The rows fuzzy rows leaves out while alarmed (ALGORITHMS.md 5): a row fails when its own
-    standardised test residual, nu_t,i^2 / C_t,ii, exceeds chi2_1(0.005) (chi2_1(1e-4) for the last
-    row standing, see ``_fuzzy_row_tests``); while any row fails, the
+    standardised test residual, nu_t,i^2 / C_t,ii, exceeds chi2_1(0.005) (2 chi2_1(1e-4) for the
+    last row standing, see ``_fuzzy_row_tests``); while any row fails, the
     rows the last two updates left out (rejected, or removed) stay out too: one failure by chance
     (0.5 % of clean rows) does not keep a row out. No row failing leaves every row out (the
     joint test alone singles out none).
@@ -703,14 +703,17 @@ def _fuzzy_row_tests(
     nu_t: np.ndarray, C_t: np.ndarray, nu_prev: np.ndarray | None, n_removed: list[int]
 ) -> tuple[list[bool], list[bool]]:
     """Per row of the test innovation: fails its own test; fails and is not a return (see
-    ``_fuzzy_rows_out``). The level is chi2_1(0.005), or chi2_1(1e-4) for the last row standing:
-    the one row the last update applied while it left every other row out (``n_removed``)."""
+    ``_fuzzy_rows_out``). The level is chi2_1(0.005), or 2 chi2_1(1e-4) = 30.3 for the last row
+    standing: the one row the last update applied while it left every other row out (``n_removed``)."""
     m = int(nu_t.shape[0])
     was_out = [n_removed[i] > 0 for i in range(m)]
     standing = [
         not was_out[i] and m > 1 and all(was_out[j] for j in range(m) if j != i) for i in range(m)
     ]
-    level = [chi2_quantile(FUZZY_LAST_ROW_ALPHA if standing[i] else FUZZY_TD2_ALPHA, 1) for i in range(m)]
+    level = [
+        2.0 * chi2_quantile(FUZZY_LAST_ROW_ALPHA, 1) if standing[i] else chi2_quantile(FUZZY_TD2_ALPHA, 1)
+        for i in range(m)
+    ]
     back = [nu_prev is not None and float(nu_t[i]) * float(nu_prev[i]) < 0.0 for i in range(m)]
     fails = [float(nu_t[i]) ** 2 > level[i] * float(C_t[i, i]) for i in range(m)]
     return fails, [f and not b for f, b in zip(fails, back, strict=True)]
