@@ -847,16 +847,15 @@ def seed_counts(sms: list[dict], plain: bool) -> str:
     n = len(sms)
     if plain:
         return f"over {n} seeds: ratio >= {GOAL_PLAIN_RP_RATIO:.1f}x on {sum(sm['ratio_ok'] for sm in sms)}"
+    fuzzy = sms[0]["fuzzy_ok"] is not None  # the mode runs the fuzzy detector
     worst = sum(max(sm["ratios"]) for sm in sms) / n
-    text = f"over {n} seeds: ratio on {sum(sm['ratio_ok'] for sm in sms)}"
-    if sms[0]["fuzzy_ok"] is not None:
-        det = sum(sm["rate"] >= GOAL_FUZZY_DETECTION for sm in sms)
-        cut = sum(sm["cut"] >= GOAL_FUZZY_FA_CUT for sm in sms)
-        text += f", detection on {det}, false alarms on {cut}"
+    det = sum(sm["rate"] >= GOAL_FUZZY_DETECTION for sm in sms)
+    cut = sum(sm["cut"] >= GOAL_FUZZY_FA_CUT for sm in sms)
     rec, every = sum(sm["rec_ok"] for sm in sms), sum(sm["all_ok"] for sm in sms)
-    text += f", recovery on {rec}, every goal on {every}"
-    text += f"; mean worst ratio {worst:.2f}"
-    if sms[0]["fuzzy_ok"] is not None:
+    text = f"over {n} seeds: ratio on {sum(sm['ratio_ok'] for sm in sms)}"
+    text += f", detection on {det}, false alarms on {cut}" if fuzzy else ""
+    text += f", recovery on {rec}, every goal on {every}; mean worst ratio {worst:.2f}"
+    if fuzzy:
         rate = 100.0 * sum(sm["rate"] for sm in sms) / n
         below = 100.0 * sum(sm["cut"] for sm in sms) / n
         text += f", detection {rate:.1f}%, below SW4 {below:.0f}%"

@@ -129,7 +129,6 @@ void mca_robust_state_init(mca_robust_state_t *st);
  */
 int mca_robust_left_out(const mca_robust_state_t *st, size_t m);
 
-
 /**
  * Upper-a quantile of chi-square with m degrees of freedom, chi2_m(a) =
  * scipy.stats.chi2.ppf(1 - a, m), from the compiled table (scripts/gen_chi2_table.py).
