@@ -47,7 +47,7 @@ MCA_COLD mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, 
     if (!mca_all_finite(q_nb, 4u) || !mca_all_finite(bias, 3u)) {
         return MCA_ERR_NONFINITE;
     }
-    memset(att, 0, sizeof(*att));
+    mca_zero_bytes(att, sizeof(*att));
     att->cfg = *cfg;
     att->sin_max_tilt = mca_sinf(cfg->max_tilt_obs_rad);
     memcpy(att->q_nb, q_nb, sizeof(att->q_nb));

@@ -56,7 +56,7 @@ MCA_COLD mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t 
     if (!isfinite(p0_m) || !isfinite(v0_mps)) {
         return MCA_ERR_NONFINITE;
     }
-    memset(ax, 0, sizeof(*ax));
+    mca_zero_bytes(ax, sizeof(*ax));
     mca_copy_bytes(&ax->cfg, cfg, sizeof(ax->cfg));
     ax->x[0] = p0_m;
     ax->x[1] = v0_mps;
@@ -182,8 +182,10 @@ static void transition_nz(const mca_cs_config_t *cfg, float t, float s2, float p
 
 void mca_cs_transition(const mca_cs_config_t *cfg, float t, float s2, float phi[25], float q[25])
 {
-    memset(phi, 0, 25u * sizeof(float));
-    memset(q, 0, 25u * sizeof(float));
+    for (size_t i = 0; i < 25u; ++i) {
+        phi[i] = 0.0f;
+        q[i] = 0.0f;
+    }
     transition_nz(cfg, t, s2, phi, q);
 }
 
@@ -636,7 +638,7 @@ mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3
         for (size_t i = 0; i < 3u; ++i) {
             mca_status_t st = MCA_OK;
             if (mask[i] == 0u) {
-                memset(&rep[i], 0, sizeof(rep[i]));
+                mca_zero_bytes(&rep[i], sizeof(rep[i]));
             } else {
                 st = axis_update(&cs->axis[i], pos[i], vel[i], r_pos[i], r_vel[i], mask[i], ws, &rep[i], NULL);
             }

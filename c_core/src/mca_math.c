@@ -123,6 +123,19 @@ void mca_copy_bytes(void *dst, const void *src, size_t n)
     }
 }
 
+void mca_zero_bytes(void *dst, size_t n)
+{
+    unsigned char *d = (unsigned char *)dst;
+    const uint32_t zero = 0u;
+    size_t i = 0;
+    for (; i + 4u <= n; i += 4u) { /* a word a turn: a 4-byte memcpy is one store, no call */
+        memcpy(d + i, &zero, sizeof zero);
+    }
+    for (; i < n; ++i) {
+        d[i] = 0u;
+    }
+}
+
 mca_status_t mca_cholesky(float *l, const float *a, size_t n)
 {
     /* Column by column; row j's upper part is zeroed with column j's lower part, so no

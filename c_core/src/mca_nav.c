@@ -121,7 +121,7 @@ MCA_COLD mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg)
     if (st != MCA_OK) {
         return st;
     }
-    memset(nav, 0, sizeof(*nav));
+    mca_zero_bytes(nav, sizeof(*nav));
     mca_copy_bytes(&nav->cfg, cfg, sizeof(nav->cfg));
     nav->g_mps2 = cfg->gravity_mps2 > 0.0f ? cfg->gravity_mps2 : G0;
     nav->att.q_nb[0] = 1.0f;
@@ -175,8 +175,10 @@ static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f
             align(nav, fm, wm, nav->cfg.att.att0_var_rad2);
             return;
         }
-        memset(nav->init_f_sum, 0, sizeof(nav->init_f_sum)); /* not still: the next block */
-        memset(nav->init_w_sum, 0, sizeof(nav->init_w_sum));
+        for (size_t i = 0; i < 3u; ++i) { /* not still: the next block */
+            nav->init_f_sum[i] = 0.0f;
+            nav->init_w_sum[i] = 0.0f;
+        }
         nav->init_n = 0u;
         nav->init_win_us = 0u;
     }
@@ -208,7 +210,9 @@ static void hist_accumulate(mca_nav_t *nav, const float f[3], uint32_t dt_us, in
         if (nav->hist_count < MCA_HIST_LEN) {
             nav->hist_count++;
         }
-        memset(nav->hist_f_sum, 0, sizeof(nav->hist_f_sum));
+        for (size_t i = 0; i < 3u; ++i) {
+            nav->hist_f_sum[i] = 0.0f;
+        }
         nav->hist_n = 0u;
         nav->hist_acc_us = 0u;
         nav->hist_sat = 0u;
@@ -718,8 +722,8 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
 static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
 {
     (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel);
-    memset(nav->acc_comp_n, 0, sizeof(nav->acc_comp_n));
     for (size_t i = 0; i < 3u; ++i) {
+        nav->acc_comp_n[i] = 0.0f;
         nav->cs.axis[i].rs.t_stat = NAN;
     }
 }
@@ -808,8 +812,7 @@ void mca_nav_output(const mca_nav_t *nav, mca_nav_output_t *out)
     if (nav == NULL || out == NULL) {
         return;
     }
-    memset(out, 0, sizeof(*out));
-    out->t_us = nav->t_imu_us;
+    out->t_us = nav->t_imu_us; /* every field is written below: no zeroing pass */
     memcpy(out->q_nb, nav->att.q_nb, sizeof(out->q_nb));
     mca_quat_to_euler(out->euler_rad, nav->att.q_nb);
     memcpy(out->gyro_bias_rps, nav->att.bias_rps, sizeof(out->gyro_bias_rps));

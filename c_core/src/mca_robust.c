@@ -40,7 +40,7 @@ mca_status_t mca_robust_config_check(const mca_robust_config_t *c)
 
 void mca_robust_state_init(mca_robust_state_t *st)
 {
-    memset(st, 0, sizeof(*st));
+    mca_zero_bytes(st, sizeof(*st));
     st->q_scale = 1.0f;
 }
 
@@ -983,11 +983,17 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
 /* An empty plan: every row kept, no inflation (the plain update). */
 static void plan_init(mca_plan_t *pl, size_t m)
 {
-    memset(pl, 0, sizeof(*pl));
-    pl->gamma = 1.0f;
+    pl->gamma = 1.0f; /* field by field: a memset call on every update's path otherwise */
     pl->keep = (1u << m) - 1u;
+    pl->use_d = 0;
+    pl->rejected = 0;
     pl->factor = 1.0f;
+    pl->detected = 0u;
+    pl->alarm = 0u;
+    pl->d_k = 0.0f;
     pl->q_scale = 1.0f;
+    pl->e_new = 0.0f;
+    pl->failed = 0u;
 }
 
 /* C = H (P H^T) + R, symmetrised; u = P H^T (n x m). */
@@ -1027,7 +1033,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     p_ht(kk, p, h, n, m); /* P H^T (P symmetric) */
     form_c(c, h, kk, r, n, m);
     if (rep != NULL) {
-        memset(rep, 0, sizeof(*rep));
+        mca_zero_bytes(rep, sizeof(*rep));
         rep->m = (uint8_t)m;
         rep->mode = (uint8_t)mode;
         rep->factor = 1.0f;
