@@ -219,9 +219,10 @@ static void plan_fta(mca_plan_t *pl, size_t m, float t_stat)
 
 /* Fuzzy three-threshold detector (paper 001). Memberships of T as ALGORITHMS.md 5 writes
  * them; where two pieces meet (T = TD1, TD2, TD3) both give the same value. pair: rows a
- * fuzzy-rows update leaves out whatever its alarm (the paired axis', ALGORITHMS.md 5). */
+ * fuzzy-rows update leaves out whatever its alarm (the paired axis', ALGORITHMS.md 5); own: the
+ * update's own innovation (nu itself without a test innovation). */
 static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_robust_state_t *rs, size_t m,
-                       float t_stat, const float *nu, const float *c, unsigned pair)
+                       float t_stat, const float *nu, const float *c, unsigned pair, const float *own)
 {
     const float td1 = mca_chi2_table[m - 1u][MCA_CHI2_2P5E2]; /* 1 <= m <= MCA_MEAS_MAX (checked) */
     const float td2 = mca_chi2_table[m - 1u][MCA_CHI2_5E3];
@@ -251,42 +252,42 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
     pl->alarm = alarm;
     pl->detected = alarm;
     if (rows) {
-        /* rows (ALGORITHMS.md 5): while alarmed, out go the rows whose own standardised test
-         * residual fails chi2_1(0.005) (2 chi2_1(1e-4) for the last row standing: the one row
-         * the last update applied while it left every other out) and, while any does, the rows
-         * out on the last two updates;
+        /* rows (ALGORITHMS.md 5): without an alarm, out goes a row past 2 chi2_1(1e-4) whose
+         * own innovation is within one test sigma of the tested one (the gate). While alarmed,
+         * out go the rows whose own standardised test residual fails chi2_1(0.005) (2
+         * chi2_1(1e-4) for the last row standing: the one row not out on the last two updates
+         * while every other was) and, while any does, the rows out on the last two updates;
          * none or every row failing rejects the whole update. At the alarm's first epoch after an
          * applied one past TD2 (D_{k-1} >= 0.5), a row whose innovation has the opposite sign of
          * that epoch's is the return from the outlier it took in: applied. The pair rows go out
          * alarmed or not. */
         unsigned drop = pair;
-        if (alarm != 0u) {
-            const float k2 = mca_chi2_table[0][MCA_CHI2_5E3], k4 = mca_chi2_table[0][MCA_CHI2_1E4]; /* m = 1 */
-            const int onset = rs->alarm == 0u && rs->d_k >= 0.5f;
-            unsigned fail = 0u, out = 0u, was = 0u, n_out = 2u, prev = 0u;
-            for (size_t j = 0; j < m; ++j) {
-                prev |= rs->n_removed[j] > 0u ? 1u << j : 0u;
-            }
-            for (size_t j = 0; j < m; ++j) {
-                const unsigned n = rs->n_removed[j], bit = 1u << j;
-                const float kj = prev != 0u && bit == (~prev & ((1u << m) - 1u)) ? k4 + k4 : k2;
-                if (nu[j] * nu[j] > kj * c[j * m + j]) {
-                    fail |= bit;
-                    if (!(onset && nu[j] * rs->nu_mean[j] < 0.0f)) {
-                        out |= bit;
-                        n_out = n > n_out ? n : n_out;
-                    }
-                }
-                was |= n > 1u ? bit : 0u;
-            }
-            drop |= fail == 0u ? pl->keep : out != 0u ? out | was : 0u;
-            /* for the pair: the failing rows, and the rows kept out that went out no later than
-             * any of them (a fault of both), not a row that went out on its own after them */
-            for (size_t j = 0; j < m && out != 0u; ++j) {
-                pl->failed |= rs->n_removed[j] >= n_out ? 1u << j : 0u;
-            }
-            pl->failed |= out;
+        const float k2 = mca_chi2_table[0][MCA_CHI2_5E3], k4 = mca_chi2_table[0][MCA_CHI2_1E4]; /* m = 1 */
+        const int onset = alarm != 0u && rs->alarm == 0u && rs->d_k >= 0.5f;
+        unsigned fail = 0u, out = 0u, was = 0u, n_out = 2u;
+        for (size_t j = 0; j < m; ++j) {
+            was |= rs->n_removed[j] > 1u ? 1u << j : 0u;
         }
+        for (size_t j = 0; j < m; ++j) {
+            const unsigned n = rs->n_removed[j], bit = 1u << j;
+            const float cj = c[j * m + j], dl = own[j] - nu[j];
+            const float kj = alarm == 0u || (was != 0u && bit == (~was & ((1u << m) - 1u))) ? k4 + k4 : k2;
+            if (nu[j] * nu[j] > kj * cj && (alarm != 0u || dl * dl <= cj)) {
+                fail |= bit;
+                if (!(onset && nu[j] * rs->nu_mean[j] < 0.0f)) {
+                    out |= bit;
+                    n_out = n > n_out ? n : n_out;
+                }
+            }
+        }
+        drop |= alarm == 0u ? out : fail == 0u ? pl->keep : out != 0u ? out | was : 0u;
+        /* for the pair, alarmed: the failing rows, and the rows kept out that went out no later
+         * than any of them (a fault of both), not a row that went out on its own after them */
+        out = alarm != 0u ? out : 0u;
+        for (size_t j = 0; j < m && out != 0u; ++j) {
+            pl->failed |= rs->n_removed[j] >= n_out ? 1u << j : 0u;
+        }
+        pl->failed |= out;
         pl->keep &= ~drop;
         pl->rejected = pl->keep == 0u;
     } else if (alarm != 0u) {
@@ -851,7 +852,7 @@ unsigned mca_kf_fuzzy_failed(const mca_robust_config_t *rc, const mca_robust_sta
     mca_plan_t pl; /* plan_fuzzy reads only keep; failed is written only when alarmed */
     pl.keep = (1u << m) - 1u;
     pl.failed = 0u;
-    plan_fuzzy(&pl, rc, rs, m, t_stat, nu_t, c_t, 0u);
+    plan_fuzzy(&pl, rc, rs, m, t_stat, nu_t, c_t, 0u, nu_t);
     return pl.failed;
 }
 
@@ -1081,7 +1082,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
         plan_akf(&pl, rc, rs, n, m, h, kk, r, y, nu_m, t_stat, d);
         break;
     case MCA_ROBUST_FUZZY:
-        plan_fuzzy(&pl, rc, rs, m, t_stat, nu_m, c_m, rs->started);
+        plan_fuzzy(&pl, rc, rs, m, t_stat, nu_m, c_m, rs->started, y);
         break;
     case MCA_ROBUST_IGG3:
         plan_igg(&pl, rc, m, r, nu_m, c_m, d, rep != NULL ? rep->w : NULL);

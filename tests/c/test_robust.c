@@ -1066,7 +1066,7 @@ static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
     mca_update_report_t rep;
     const float h[4] = {1.0f, 0.0f, 0.0f, 1.0f}, r[4] = {0.1f, 0.0f, 0.0f, 0.1f};
     float x[2], p[4];
-    const float quiet[2] = {0.1f, 0.1f}, spike[2] = {8.0f, 0.0f};
+    const float quiet[2] = {0.1f, 0.1f}, spike[2] = {5.0f, 0.0f};
     for (int k = 0; k < 6; ++k) { /* D settles near 2 TD1 / TD3 */
         x[0] = x[1] = 0.0f;
         eye(p, 2, 1.0f);
@@ -1074,10 +1074,10 @@ static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
     }
     x[0] = x[1] = 0.0f;
     eye(p, 2, 1.0f);
-    /* T = 58 (TD2 10.6 < T < TD3 106): D = 0.82, no alarm, taken in */
+    /* T = 23 (TD2 10.6 < T < TD3 106, under the gate's 30.3): D = 0.63, no alarm, taken in */
     CHECK_EQ_INT(mca_kf_update(x, p, 2, h, spike, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
     CHECK_EQ_INT(rep.alarm, 0);
-    CHECK(x[0] > 5.0f && rs.d_k > 0.5f && rs.d_k < 1.0f);
+    CHECK(x[0] > 4.0f && rs.d_k > 0.5f && rs.d_k < 1.0f);
     for (int sign = -1; sign <= 1; sign += 2) {
         mca_robust_state_t rs2 = rs;
         x[0] = x[1] = 0.0f;
@@ -1092,8 +1092,8 @@ static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
     }
 }
 
-/* Fuzzy rows' last row standing (ALGORITHMS.md 5): the one row the last update applied while it
- * left every other row out fails above 2 chi2_1(1e-4) = 30.3 instead of chi2_1(0.005) = 7.88.
+/* Fuzzy rows' last row standing (ALGORITHMS.md 5): the one row not out on the last two updates
+ * while every other row was fails above 2 chi2_1(1e-4) = 30.3 instead of chi2_1(0.005) = 7.88.
  * H = I, P = I, R = 0.1 I: C = 1.1 I; row 0 fails at 91 sigma, row 1 at nu^2 / C = 11, 25 or 40. */
 static void test_fuzzy_rows_last_row_standing(void)
 {
@@ -1113,6 +1113,7 @@ static void test_fuzzy_rows_last_row_standing(void)
         {0u, 0u, 0u, 11.0f, 0}, /* nothing out before: 11 > 7.88 */
         {3u, 3u, 3u, 11.0f, 0}, /* both out (rejected): no row stands alone */
         {3u, 0u, 0u, 40.0f, 0}, /* alone, but 40 > 30.3 */
+        {1u, 0u, 0u, 11.0f, 0}, /* row 0 out on one update only (the gate): 11 > 7.88 */
     };
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
         mca_robust_state_t rs;
@@ -1132,6 +1133,56 @@ static void test_fuzzy_rows_last_row_standing(void)
         CHECK_EQ_INT(rep.rejected, !cases[k].applied1);
         CHECK_EQ_INT(rs.n_removed[1] == 0u, cases[k].applied1);
     }
+}
+
+/* Fuzzy rows' gate (ALGORITHMS.md 5): an update that does not alarm leaves out a row past
+ * 2 chi2_1(1e-4) = 30.3 of its test where the own innovation is within one test sigma of the
+ * tested one; every row past it rejects the update. H = I, P = I, R = 0.1 I: C = 1.1 I. */
+static void test_fuzzy_rows_gate(void)
+{
+    mca_robust_config_t rc;
+    cfg_mode(&rc, MCA_ROBUST_FUZZY);
+    rc.fuzzy_reject = 2u;
+    mca_update_report_t rep;
+    const float h[4] = {1.0f, 0.0f, 0.0f, 1.0f}, r[4] = {0.1f, 0.0f, 0.0f, 0.1f};
+    const float c_t[4] = {1.1f, 0.0f, 0.0f, 1.1f};
+    const float gate = sqrtf(2.0f * 15.137f * 1.1f); /* |nu| at the gate, 2 chi2_1(1e-4) = 30.27 */
+    const struct {
+        float z0, nu_t0; /* row 0's own innovation and tested one (row 1: 0.5, tested 0.5) */
+        int tested, out0;
+    } cases[] = {
+        {0.99f * gate, 0.0f, 0, 0},                     /* under the gate: applied */
+        {1.01f * gate, 0.0f, 0, 1},                     /* past it: out, row 1 applied */
+        {1.01f * gate + 0.9f * 1.0488f, 1.01f * gate, 1, 1}, /* own 0.9 test sigma from the tested */
+        {1.01f * gate + 1.2f * 1.0488f, 1.01f * gate, 1, 0}, /* 1.2 test sigma: not gated */
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        mca_robust_state_t rs;
+        mca_robust_state_init(&rs);
+        float x[2] = {0.0f, 0.0f}, p[4];
+        eye(p, 2, 1.0f);
+        const float z[2] = {cases[k].z0, 0.5f}, nu_t[2] = {cases[k].nu_t0, 0.5f};
+        CHECK_EQ_INT(mca_kf_update_tested(x, p, 2, h, z, r, 2, &rc, &rs, cases[k].tested ? nu_t : NULL,
+                                          cases[k].tested ? c_t : NULL, g_ws, WS_MAX, &rep),
+                     MCA_OK);
+        CHECK_EQ_INT(rep.alarm, 0); /* T < TD3 = 106: the three-threshold rule does not alarm */
+        CHECK_EQ_INT(x[0] == 0.0f, cases[k].out0);
+        CHECK(x[1] != 0.0f);
+        CHECK_EQ_INT(rs.n_removed[0], cases[k].out0);
+        CHECK_EQ_INT(rs.n_removed[1], 0);
+    }
+    /* both rows past the gate, T = 65 < TD3: rejected without an alarm; plain fuzzy: applied */
+    mca_robust_state_t rs;
+    mca_robust_state_init(&rs);
+    float x[2] = {0.0f, 0.0f}, p[4];
+    eye(p, 2, 1.0f);
+    const float z[2] = {6.0f, 6.0f};
+    CHECK_EQ_INT(mca_kf_update(x, p, 2, h, z, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
+    CHECK(rep.alarm == 0u && rep.rejected == 1u && x[0] == 0.0f && x[1] == 0.0f && rs.n_reject == 1u);
+    rc.fuzzy_reject = 1u;
+    mca_robust_state_init(&rs);
+    CHECK_EQ_INT(mca_kf_update(x, p, 2, h, z, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
+    CHECK(rep.alarm == 0u && rep.rejected == 0u && x[0] != 0.0f);
 }
 
 /* Fuzzy rows' N/E pair (ALGORITHMS.md 5): mca_kf_fuzzy_failed gives the rows an alarmed update
@@ -1218,6 +1269,7 @@ int main(void)
     test_fuzzy_rows_long_guard_needs_a_test_innovation();
     test_fuzzy_rows_apply_the_return_from_a_spike();
     test_fuzzy_rows_last_row_standing();
+    test_fuzzy_rows_gate();
     test_fuzzy_rows_pair();
     TEST_MAIN_END();
 }

@@ -572,13 +572,40 @@ def test_fuzzy_rows_apply_the_return_from_a_spike() -> None:
     st = RobustState()
     for _ in range(6):  # D settles near 2 TD1 / TD3
         robust_update(np.zeros(2), P, H, np.array([0.1, 0.1]), R, cfg, st)
-    xn, _, rep = robust_update(np.zeros(2), P, H, np.array([8.0, 0.0]), R, cfg, st)
-    assert not rep.alarm and xn[0] > 5.0 and 0.5 < st.d_k < 1.0  # T = 58: taken in
+    xn, _, rep = robust_update(np.zeros(2), P, H, np.array([5.0, 0.0]), R, cfg, st)
+    assert not rep.alarm and xn[0] > 4.0 and 0.5 < st.d_k < 1.0  # T = 23, under the gate: taken in
     for sign in (-1.0, 1.0):
         st2 = copy.deepcopy(st)
         xn, _, rep = robust_update(np.zeros(2), P, H, np.array([8.0 * sign, 0.1]), R, cfg, st2)
         assert rep.alarm and not rep.rejected and xn[1] != 0.0
         assert (xn[0] != 0.0) == (sign < 0) and (st2.n_removed[0] > 0) == (sign > 0)
+
+
+def test_fuzzy_rows_gate() -> None:
+    """ALGORITHMS.md 5, fuzzy rows' gate: an update that does not alarm leaves out a row past
+    2 chi2_1(1e-4) = 30.3 of its test, if the filter's own innovation is within one test sigma
+    of the tested one; the other rows are applied. H = I, P = I, R = 0.1 I: C = 1.1 I."""
+    H, R, P, x0 = np.eye(2), np.diag([0.1, 0.1]), np.eye(2), np.zeros(2)
+    cfg = RobustConfig("fuzzy", fuzzy_reject=2)
+    level = 2.0 * chi2_quantile(1e-4, 1) * 1.1  # nu^2 at the gate
+    for nu0, gated in ((math.sqrt(level) * 0.99, False), (math.sqrt(level) * 1.01, True)):
+        st = RobustState()
+        xn, _, rep = robust_update(x0, P, H, np.array([nu0, 0.5]), R, cfg, st)
+        assert not rep.alarm and not rep.rejected  # T < TD3: the three-threshold rule does not alarm
+        assert (xn[0] == 0.0) == gated and xn[1] != 0.0 and st.n_removed[:2] == [int(gated), 0]
+    # the own innovation 1.2 test sigmas from the tested one: not gated
+    nu_own = np.array([math.sqrt(level) * 1.01 + 1.2 * math.sqrt(1.1), 0.5])
+    st = RobustState()
+    test = (np.array([math.sqrt(level) * 1.01, 0.5]), 1.1 * np.eye(2))
+    xn, _, rep = robust_update(x0, P, H, nu_own, R, cfg, st, test=test)
+    assert not rep.alarm and xn[0] != 0.0 and st.n_removed[:2] == [0, 0]
+    # every row past the gate: the update rejected, not alarmed
+    st = RobustState()
+    xn, _, rep = robust_update(x0, P, H, np.array([6.0, 6.0]), R, cfg, st)
+    assert rep.T < fuzzy_thresholds(2)[2] and not rep.alarm and rep.rejected and not xn.any()
+    # the modes without rows are not gated
+    xn, _, rep = robust_update(x0, P, H, np.array([6.0, 0.5]), R, RobustConfig("fuzzy"), RobustState())
+    assert not rep.alarm and xn[0] != 0.0
 
 
 def test_fuzzy_rows_pair() -> None:

@@ -171,6 +171,7 @@ FUZZY_TD2_ALPHA = 0.005  # paper 001: TD2 = chi2_m(0.005), the usual single thre
 FUZZY_TD3_OVER_TD2 = 10.0  # paper 001: TD3 = 10 TD2, "outlier" above it
 FUZZY_ROWS = 2  # fuzzy_reject value of the rows variant (ALGORITHMS.md 5)
 FUZZY_LAST_ROW_ALPHA = 1e-4  # fuzzy rows: the last row standing fails above 2 chi2_1(this) (ALGORITHMS.md 5)
+FUZZY_GATE_ALPHA = 1e-4  # fuzzy rows without an alarm: a row past 2 chi2_1(this) is gated (ALGORITHMS.md 5)
 RESET_N_DEFAULT = 5  # the default lock-up guard, and fuzzy rows' without a test innovation
 
 
@@ -663,8 +664,10 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
     if rows and memory.alarm:
         out = _fuzzy_rows_out(step, memory, nu_prev if onset else None)
         return _rows_update(step, [o or p for o, p in zip(out, pair, strict=True)], alarm=True)
-    if rows and any(pair):
-        return _rows_update(step, list(pair), alarm=False)
+    if rows:
+        out = [g or p for g, p in zip(_fuzzy_rows_gated(step), pair, strict=True)]
+        if any(out):
+            return _rows_update(step, out, alarm=False)
     if not memory.alarm:
         x, P = _gain_update(step.x, step.P, step.H, step.nu, step.C, step.R)
         return x, P, _outcome(step.m)
@@ -699,14 +702,30 @@ def _fuzzy_rows_out(step: _Step, memory: RobustState, nu_prev: np.ndarray | None
     return [False] * m  # only returns fail: the update takes every row
 
 
+def _fuzzy_rows_gated(step: _Step) -> list[bool]:
+    """The rows fuzzy rows leaves out of an update that does not alarm (ALGORITHMS.md 5, the
+    gate): a row whose test residual is past 2 chi2_1(1e-4), nu_t,i^2 > 30.3 C_t,ii, where the
+    filter's own prediction agrees with the test's, (nu_i - nu_t,i)^2 <= C_t,ii. A fault the
+    three-threshold rule does not alarm on at its first epoch (T between TD2 and TD3) is not
+    taken in whole; a filter whose own prediction lags what the test's sees (a hard braking the
+    CS acceleration has not caught up with) is not gated on that lag."""
+    level = 2.0 * chi2_quantile(FUZZY_GATE_ALPHA, 1)
+    return [
+        float(step.nu_test[i]) ** 2 > level * float(step.C_test[i, i])
+        and (float(step.nu[i]) - float(step.nu_test[i])) ** 2 <= float(step.C_test[i, i])
+        for i in range(step.m)
+    ]
+
+
 def _fuzzy_row_tests(
     nu_t: np.ndarray, C_t: np.ndarray, nu_prev: np.ndarray | None, n_removed: list[int]
 ) -> tuple[list[bool], list[bool]]:
     """Per row of the test innovation: fails its own test; fails and is not a return (see
     ``_fuzzy_rows_out``). The level is chi2_1(0.005), or 2 chi2_1(1e-4) = 30.3 for the last row
-    standing: the one row the last update applied while it left every other row out (``n_removed``)."""
+    standing: the one row not out on the last two updates while every other row was
+    (``n_removed``; a row the gate held out once does not make another row stand)."""
     m = int(nu_t.shape[0])
-    was_out = [n_removed[i] > 0 for i in range(m)]
+    was_out = [n_removed[i] > 1 for i in range(m)]
     standing = [
         not was_out[i] and m > 1 and all(was_out[j] for j in range(m) if j != i) for i in range(m)
     ]
