@@ -259,7 +259,8 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
          * while every other was) and, while any does, the rows out on the last two updates;
          * none or every row failing rejects the whole update. At the alarm's first epoch after an
          * applied one past TD2 (D_{k-1} >= 0.5), a row whose innovation has the opposite sign of
-         * that epoch's is the return from the outlier it took in: applied. The pair rows go out
+         * that epoch's, and is no larger, is the return from the outlier it took in: applied. The
+         * pair rows go out
          * alarmed or not. */
         unsigned drop = pair;
         const float k2 = mca_chi2_table[0][MCA_CHI2_5E3], k4 = mca_chi2_table[0][MCA_CHI2_1E4]; /* m = 1 */
@@ -274,7 +275,8 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
             const float kj = alarm == 0u || (was != 0u && bit == (~was & ((1u << m) - 1u))) ? k4 + k4 : k2;
             if (nu[j] * nu[j] > kj * cj && (alarm != 0u || dl * dl <= cj)) {
                 fail |= bit;
-                if (!(onset && nu[j] * rs->nu_mean[j] < 0.0f)) {
+                const float prev = rs->nu_mean[j];
+                if (!(onset && nu[j] * prev < 0.0f && nu[j] * nu[j] <= prev * prev)) {
                     out |= bit;
                     n_out = n > n_out ? n : n_out;
                 }

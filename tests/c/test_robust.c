@@ -1053,9 +1053,10 @@ static void test_fuzzy_rows_long_guard_needs_a_test_innovation(void)
 }
 
 /* Fuzzy rows' return rule (ALGORITHMS.md 5): at the alarm's first epoch after an applied epoch
- * past TD2, a failing row whose innovation has the opposite sign of that epoch's is the return
- * from the outlier that epoch took in and is applied; with the same sign it is left out. Two
- * independent rows (H = I, P = I, R = 0.1 I), x and P afresh each update, the memory kept. */
+ * past TD2, a failing row whose innovation has the opposite sign of that epoch's, and is no
+ * larger, is the return from the outlier that epoch took in and is applied; with the same sign,
+ * or larger, it is left out. Two independent rows (H = I, P = I, R = 0.1 I), x and P afresh each
+ * update, the memory kept; row 1 fails on its own (5.7 sigma) in each case. */
 static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
 {
     mca_robust_config_t rc;
@@ -1078,17 +1079,21 @@ static void test_fuzzy_rows_apply_the_return_from_a_spike(void)
     CHECK_EQ_INT(mca_kf_update(x, p, 2, h, spike, r, 2, &rc, &rs, g_ws, WS_MAX, &rep), MCA_OK);
     CHECK_EQ_INT(rep.alarm, 0);
     CHECK(x[0] > 4.0f && rs.d_k > 0.5f && rs.d_k < 1.0f);
-    for (int sign = -1; sign <= 1; sign += 2) {
+    const struct {
+        float nu0;
+        int applied;
+    } cases[] = {{-5.0f, 1}, {-4.0f, 1}, {5.0f, 0}, {-5.5f, 0}}; /* row 0 fails (T_0 >= 14.5) */
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
         mca_robust_state_t rs2 = rs;
         x[0] = x[1] = 0.0f;
         eye(p, 2, 1.0f);
-        const float z[2] = {8.0f * (float)sign, 0.1f}; /* row 0 fails alone (T_0 = 58) */
+        const float z[2] = {cases[k].nu0, 6.0f}; /* T >= 47: alarmed */
         CHECK_EQ_INT(mca_kf_update(x, p, 2, h, z, r, 2, &rc, &rs2, g_ws, WS_MAX, &rep), MCA_OK);
         CHECK_EQ_INT(rep.alarm, 1);
-        CHECK_EQ_INT(rep.rejected, 0);
-        CHECK(x[1] != 0.0f);                         /* row 1 applied either way */
-        CHECK_EQ_INT(x[0] != 0.0f, sign < 0);         /* row 0: applied when it returns */
-        CHECK_EQ_INT(rs2.n_removed[0] > 0u, sign > 0);
+        CHECK_EQ_INT(rep.rejected, !cases[k].applied);
+        CHECK(x[1] == 0.0f);                               /* row 1 out either way */
+        CHECK_EQ_INT(x[0] != 0.0f, cases[k].applied);      /* row 0: applied when it returns */
+        CHECK_EQ_INT(rs2.n_removed[0] > 0u, !cases[k].applied);
     }
 }
 

@@ -565,8 +565,9 @@ def test_inputs_are_not_modified_and_outputs_do_not_alias_them() -> None:
 
 def test_fuzzy_rows_apply_the_return_from_a_spike() -> None:
     """ALGORITHMS.md 5, fuzzy rows' return rule: at the alarm's first epoch after an applied epoch
-    past TD2, a failing row whose tested innovation has the opposite sign of that epoch's is the
-    return from the outlier it took in, and is applied; with the same sign it is left out."""
+    past TD2, a failing row whose tested innovation has the opposite sign of that epoch's, and is
+    no larger, is the return from the outlier it took in, and is applied; with the same sign, or
+    larger, it is left out. Row 1 fails on its own (6 / sqrt(1.1) = 5.7 sigma) in each case."""
     H, R, P = np.eye(2), np.diag([0.1, 0.1]), np.eye(2)
     cfg = RobustConfig("fuzzy", fuzzy_reject=2)
     st = RobustState()
@@ -574,11 +575,11 @@ def test_fuzzy_rows_apply_the_return_from_a_spike() -> None:
         robust_update(np.zeros(2), P, H, np.array([0.1, 0.1]), R, cfg, st)
     xn, _, rep = robust_update(np.zeros(2), P, H, np.array([5.0, 0.0]), R, cfg, st)
     assert not rep.alarm and xn[0] > 4.0 and 0.5 < st.d_k < 1.0  # T = 23, under the gate: taken in
-    for sign in (-1.0, 1.0):
+    for nu0, applied in ((-5.0, True), (-4.0, True), (5.0, False), (-5.5, False)):
         st2 = copy.deepcopy(st)
-        xn, _, rep = robust_update(np.zeros(2), P, H, np.array([8.0 * sign, 0.1]), R, cfg, st2)
-        assert rep.alarm and not rep.rejected and xn[1] != 0.0
-        assert (xn[0] != 0.0) == (sign < 0) and (st2.n_removed[0] > 0) == (sign > 0)
+        xn, _, rep = robust_update(np.zeros(2), P, H, np.array([nu0, 6.0]), R, cfg, st2)
+        assert rep.alarm and rep.rejected == (not applied) and xn[1] == 0.0
+        assert (xn[0] != 0.0) == applied and (st2.n_removed[0] > 0) == (not applied)
 
 
 def test_fuzzy_rows_gate() -> None:

@@ -688,9 +688,9 @@ def _fuzzy_rows_out(step: _Step, memory: RobustState, nu_prev: np.ndarray | None
     joint test alone singles out none).
 
     ``nu_prev``: at the alarm's first epoch after an applied epoch past TD2 (D_{k-1} >= 0.5), that
-    epoch's tested innovation; a row whose innovation has the opposite sign is the return from
-    the outlier that epoch took in: it does not count as failing (if only such rows fail, the
-    update takes every row)."""
+    epoch's tested innovation; a row whose innovation has the opposite sign, and is no larger, is
+    the return from the outlier that epoch took in: it does not count as failing (if only such
+    rows fail, the update takes every row)."""
     m = step.m
     fails, bad = _fuzzy_row_tests(step.nu_test, step.C_test, nu_prev, memory.n_removed)
     if not any(fails):
@@ -733,7 +733,12 @@ def _fuzzy_row_tests(
         2.0 * chi2_quantile(FUZZY_LAST_ROW_ALPHA, 1) if standing[i] else chi2_quantile(FUZZY_TD2_ALPHA, 1)
         for i in range(m)
     ]
-    back = [nu_prev is not None and float(nu_t[i]) * float(nu_prev[i]) < 0.0 for i in range(m)]
+    back = [
+        nu_prev is not None
+        and float(nu_t[i]) * float(nu_prev[i]) < 0.0
+        and abs(float(nu_t[i])) <= abs(float(nu_prev[i]))
+        for i in range(m)
+    ]
     fails = [float(nu_t[i]) ** 2 > level[i] * float(C_t[i, i]) for i in range(m)]
     return fails, [f and not b for f, b in zip(fails, back, strict=True)]
 
