@@ -794,7 +794,8 @@ def scenario_nav_outliers() -> VecWriter:
     """Fixed-wing turns under GNSS faults with the fuzzy-rows profile on the CS axes (the N/E pair,
     coasting; docs/ALGORITHMS.md 5) and fuzzy-reject on the attitude filter: a 20 m position burst
     at an azimuth of 20 degrees (N 18.8 m, E 6.8 m), a 2 m/s velocity burst, a burst of both, a
-    single velocity spike."""
+    single velocity spike, and a 1.5 m/s north velocity burst whose first fix the three-threshold
+    rule does not alarm on (T < TD3) and fuzzy rows' gate leaves out."""
     rng = np.random.default_rng(7007)
     tr = make_truth(
         IMU_DT,
@@ -817,6 +818,7 @@ def scenario_nav_outliers() -> VecWriter:
     burst(5.5, 6.5, 0.0, 2.0, 200.0)
     burst(7.0, 7.6, 15.0, 1.5, 120.0)
     burst(8.0, 8.05, 0.0, 3.0, 300.0)
+    burst(8.3, 8.8, 0.0, 1.5, 0.0)
     w = VecWriter()
     op_nav_init(w, 1, rob_cs=ROB_FUZZY_ROWS, rob_att=3)
     nav_ops(w, nav_events(tr, rng, t0_us=30_000_000, latency_s=0.12, faults=(pos_f, vel_f)))
