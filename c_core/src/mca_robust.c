@@ -260,8 +260,7 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
          * none or every row failing rejects the whole update. At the alarm's first epoch after an
          * applied one past TD2 (D_{k-1} >= 0.5), a row whose innovation has the opposite sign of
          * that epoch's, and is no larger, is the return from the outlier it took in: applied. The
-         * pair rows go out
-         * alarmed or not. */
+         * pair rows go out alarmed or not. */
         unsigned drop = pair;
         const float k2 = mca_chi2_table[0][MCA_CHI2_5E3], k4 = mca_chi2_table[0][MCA_CHI2_1E4]; /* m = 1 */
         const int onset = alarm != 0u && rs->alarm == 0u && rs->d_k >= 0.5f;
