@@ -821,6 +821,7 @@ void mca_nav_output(const mca_nav_t *nav, mca_nav_output_t *out)
         tau = nav->t_imu_us >= nav->t_lastfix_us ? span_s(nav->t_lastfix_us, nav->t_imu_us)
                                                   : -span_s(nav->t_imu_us, nav->t_lastfix_us);
     }
+    uint32_t f = nav->flags;
     for (size_t i = 0; i < 3u; ++i) {
         const mca_cs_axis_t *ax = &nav->cs.axis[i];
         out->pos_ned_m[i] = ax->x[0] + ax->x[1] * tau + 0.5f * ax->x[2] * tau * tau;
@@ -830,12 +831,12 @@ void mca_nav_output(const mca_nav_t *nav, mca_nav_output_t *out)
         out->cs_var[i * 3u + 1u] = ax->p[6];
         out->cs_var[i * 3u + 2u] = ax->p[12];
         out->gps_t[i] = nav->last_gps_t[i];
+        f |= ax->rs.alarm != 0u ? (uint32_t)MCA_FLAG_ALARM_N << i : 0u;
     }
     for (size_t i = 0; i < 6u; ++i) {
         out->att_var[i] = nav->att.p[i * 7u];
     }
     out->rp_t = nav->last_rp_t;
-    uint32_t f = nav->flags;
     f |= nav->aligned ? (uint32_t)MCA_FLAG_ALIGNED : 0u;
     f |= nav->home_set ? (uint32_t)MCA_FLAG_HOME_SET : 0u;
     f |= gps_lost(nav, nav->t_imu_us) ? (uint32_t)MCA_FLAG_GPS_LOST : 0u;

@@ -348,6 +348,9 @@ FLAG_BITS = {
     "grav_skipped": lib.MCA_FLAG_GRAV_SKIPPED,
     "saturated": lib.MCA_FLAG_SATURATED,
     "hist_miss": lib.MCA_FLAG_HIST_MISS,
+    "alarm_n": lib.MCA_FLAG_ALARM_N,
+    "alarm_e": lib.MCA_FLAG_ALARM_N << 1,
+    "alarm_d": lib.MCA_FLAG_ALARM_N << 2,
 }
 
 IMU_C_DTYPE = struct_dtype("mca_imu_sample_t")

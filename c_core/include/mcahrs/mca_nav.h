@@ -40,6 +40,7 @@
 #define MCA_FLAG_GRAV_SKIPPED 16
 #define MCA_FLAG_SATURATED 32
 #define MCA_FLAG_HIST_MISS 64
+#define MCA_FLAG_ALARM_N 128 /**< the N CS axis' fuzzy detector is alarmed (fuzzy modes); E, D: << 1, << 2 */
 
 typedef struct {
     mca_cs_config_t cs_h;       /**< CS configuration, N and E */
