@@ -192,10 +192,10 @@ def bench_recording(path: Path, seed: int) -> None:
 
 
 def cs_run(rec: Recording, cfg: object, rule: str) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """The CS + gravity filter's output, and per fix whether its profile's rule flagged it."""
+    """The CS + gravity filter's output, and per fix whether its profile flagged it (the fuzzy
+    modes: the C's own alarm; the others: their rule on T; ``bench_outliers.mode_flags``)."""
     r = replay(rec, cfg)
-    ns = types.SimpleNamespace(T=r.T, m=r.m, valid=r.valid)
-    return r.out, bo.rule_flags(rule, ns) & r.valid
+    return r.out, bo.mode_flags(rule, r) & r.valid
 
 
 def ins_run(rec: Recording, cfg: object, mode: str) -> tuple[dict[str, np.ndarray], np.ndarray]:
