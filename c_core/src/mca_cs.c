@@ -2,6 +2,7 @@
 #include "mcahrs/mca_cs.h"
 #include "mca_cold.h"
 #include "mca_defaults.h"
+#include "mca_cs_nocheck.h"
 #include "mca_kf_rows.h"
 
 #include <math.h>
@@ -629,9 +630,16 @@ mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3
             }
         }
     }
+    return mca_cs3_update_nocheck(cs, pos, vel, r_pos, r_vel, mask, ws, rep);
+}
+
+mca_status_t mca_cs3_update_nocheck(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
+                                    const float r_vel[3], const uint8_t mask[3], float *ws,
+                                    mca_update_report_t rep[3])
+{
     /* Axes are independent; C = H P H^T + R is positive definite whenever P is PSD and
-     * R > 0 (checked above), so an update can fail now only by float overflow, which leaves
-     * that axis unchanged (mca_kf_update is atomic). */
+     * R > 0 (checked by the caller), so an update can fail now only by float overflow, which
+     * leaves that axis unchanged (mca_kf_update is atomic). */
     mca_status_t result = MCA_OK;
     pair_rows(cs, pos, vel, r_pos, r_vel, mask, ws);
     if (rep != NULL) {

@@ -2,6 +2,7 @@
 #include "mcahrs/mca_nav.h"
 #include "mca_att_nocheck.h"
 #include "mca_cold.h"
+#include "mca_cs_nocheck.h"
 #include "mca_defaults.h"
 
 #include <math.h>
@@ -613,11 +614,19 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
                                        (has_vd ? MCA_CS_VEL : 0u))};
     const float rp[3] = {h_acc * h_acc, h_acc * h_acc, v_acc * v_acc};
     const float rv[3] = {s_acc * s_acc, s_acc * s_acc, s_acc * s_acc};
+    /* The values were checked where the fix entered (mca_gps_fix_read) and the masks are well
+     * formed; what is left of mca_cs3_update's checks is that a variance in use is finite and
+     * > 0 (an accuracy over ~1.8e19 or under ~1e-19 squares out of range). */
+    for (size_t i = 0; i < 3u; ++i) {
+        if (((mask[i] & MCA_CS_POS) != 0u && !mca_positive(rp[i])) ||
+            ((mask[i] & MCA_CS_VEL) != 0u && !mca_positive(rv[i]))) {
+            return MCA_ERR_BAD_ARG;
+        }
+    }
     /* No report (T is read from the axis memory; N and E can then share one covariance
-     * update). Every input was checked above and the masks are well formed, so an axis can
-     * fail only numerically, and then it is left unchanged (mca_cs_axis_update is atomic) and
-     * keeps its T. */
-    st = mca_cs3_update(&nav->cs, ned, fv->vel_ned_mps, rp, rv, mask, nav->ws, NULL);
+     * update). An axis can fail only numerically, and then it is left unchanged
+     * (mca_cs_axis_update is atomic) and keeps its T. */
+    st = mca_cs3_update_nocheck(&nav->cs, ned, fv->vel_ned_mps, rp, rv, mask, nav->ws, NULL);
     for (size_t i = 0; i < 3u; ++i) {
         if (mask[i] != 0u) {
             nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat; /* NaN until an update succeeds */

@@ -1,0 +1,17 @@
+/* Private to the core sources: the CS filter's three-axis update without its argument checks,
+ * for the navigation filter (mca_nav.c), as mca_att_nocheck.h is for the attitude filter. The
+ * navigation filter builds the update from a fix it has checked where it entered, so checking
+ * it again would only cost flash and instructions. For valid arguments it gives the public
+ * function's result; the public function is the check, then this. */
+#ifndef MCA_CS_NOCHECK_H
+#define MCA_CS_NOCHECK_H
+
+#include "mcahrs/mca_cs.h"
+
+/* mca_cs3_update with every pointer non-NULL, at least one mask non-zero and each non-zero mask
+ * of MCA_CS_POS | MCA_CS_VEL only, the measured values finite and their variances finite and > 0 */
+mca_status_t mca_cs3_update_nocheck(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
+                                    const float r_vel[3], const uint8_t mask[3], float *ws,
+                                    mca_update_report_t rep[3]);
+
+#endif /* MCA_CS_NOCHECK_H */
