@@ -43,7 +43,7 @@ GOAL_STACK = 1024
 GOAL_INSTR = {"nav_imu": 2500, "nav_gps": 12000}
 # Vector files that run a robust profile (gen_vectors.py): their calls are reported on their own,
 # beside the goals, which are the base filter's (plain mode: three CS axes + gravity update).
-ROBUST_VECTORS = ("nav_outliers",)
+ROBUST_VECTORS = ("nav_outliers", "nav_outliers_rx")
 KIB = 1024.0
 
 

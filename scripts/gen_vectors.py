@@ -14,7 +14,8 @@ Scenarios: ``cs_maneuvers`` and ``cs_random`` drive the CS filter directly (10 H
 ground vehicle through steady driving, hard acceleration and braking, turns; random and
 invalid inputs); ``nav_steady``, ``nav_accel_brake``, ``nav_turns``, ``nav_random`` drive the
 navigation top level (400 Hz IMU, 10 Hz GPS with latency, 50 Hz outputs; the random one
-with magnetometer, faults and a 32-bit time wrap); ``ins_fixedwing_turns`` drives the
+with magnetometer, faults and a 32-bit time wrap; ``nav_outliers`` with GNSS faults and the
+fuzzy-rows profile, ``nav_outliers_rx`` the same with the receiver model); ``ins_fixedwing_turns`` drives the
 loosely-coupled INS (mca_ins.h) through 18 s of a simulated fixed-wing flight (``mcahrs.sim``).
 
 This module is also the Python side of the format (op codes read from
@@ -397,6 +398,7 @@ _CS_FIELDS = [
 ]
 KEEP = 0xFFFFFFFF
 ROB_FUZZY_ROWS = 0x0203  # NAV_INIT_PRESET's CS robust mode for the fuzzy-rows profile (replay_main.c)
+ROB_FUZZY_ROWS_RX = 0x0204  # the same with the receiver model: white 0.8 / 1.5 m, nav_events' fix noise
 
 
 def cs_config_words(c: dict) -> tuple[str, list]:
@@ -790,7 +792,7 @@ def scenario_nav_turns() -> VecWriter:
     return w
 
 
-def scenario_nav_outliers() -> VecWriter:
+def scenario_nav_outliers(receiver_model: bool = False) -> VecWriter:
     """Fixed-wing turns under GNSS faults with the fuzzy-rows profile on the CS axes (the N/E pair,
     coasting; docs/ALGORITHMS.md 5) and fuzzy-reject on the attitude filter: a 20 m position burst
     at an azimuth of 20 degrees (N 18.8 m, E 6.8 m), a 2 m/s velocity burst, a burst of both, a
@@ -820,9 +822,15 @@ def scenario_nav_outliers() -> VecWriter:
     burst(8.0, 8.05, 0.0, 3.0, 300.0)
     burst(8.3, 8.8, 0.0, 1.5, 0.0)
     w = VecWriter()
-    op_nav_init(w, 1, rob_cs=ROB_FUZZY_ROWS, rob_att=3)
+    op_nav_init(w, 1, rob_cs=ROB_FUZZY_ROWS_RX if receiver_model else ROB_FUZZY_ROWS, rob_att=3)
     nav_ops(w, nav_events(tr, rng, t0_us=30_000_000, latency_s=0.12, faults=(pos_f, vel_f)))
     return w
+
+
+def scenario_nav_outliers_rx() -> VecWriter:
+    """nav_outliers with the receiver model (docs/ALGORITHMS.md 8, GPS step 4): the white parts of
+    the fix noise as the position rows' R, below the fixes' reported accuracies."""
+    return scenario_nav_outliers(receiver_model=True)
 
 
 def scenario_nav_random() -> VecWriter:
@@ -979,6 +987,7 @@ SCENARIOS = {
     "nav_turns": scenario_nav_turns,
     "nav_random": scenario_nav_random,
     "nav_outliers": scenario_nav_outliers,
+    "nav_outliers_rx": scenario_nav_outliers_rx,
     "ins_fixedwing_turns": scenario_ins_fixedwing_turns,
 }
 

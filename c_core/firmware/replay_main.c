@@ -322,6 +322,7 @@ static void op_cs3_update(in_t *in, out_t *out)
 
 #define RPL_KEEP 0xFFFFFFFFu
 #define RPL_ROB_FUZZY_ROWS 0x0203u /* CS robust "mode": the fuzzy-rows profile */
+#define RPL_ROB_FUZZY_ROWS_RX 0x0204u /* the same with a receiver model (the vectors' fix noise) */
 
 /* in: u32 preset (0 default, 1 fixed-wing, 2 multirotor; anything else passes a NULL
  * config), u32 comp_mode, u32 yaw_source, u32 CS robust mode, u32 attitude robust mode
@@ -344,7 +345,13 @@ static void op_nav_init_preset(in_t *in, out_t *out)
     if (yaw != RPL_KEEP) {
         cfg.yaw_source = (uint8_t)(yaw > 255u ? 255u : yaw);
     }
-    if (rob_cs == RPL_ROB_FUZZY_ROWS) {
+    if (rob_cs == RPL_ROB_FUZZY_ROWS_RX) {
+        /* ALGORITHMS.md 8, GPS step 4: the white parts of gen_vectors.py's fix noise (0.8 / 1.5 m)
+         * as R, below the fixes' reported 1.2 / 2.0 m; the CS GPS-error state at its defaults */
+        cfg.gps_pos_white_m = 0.8f;
+        cfg.gps_alt_white_m = 1.5f;
+    }
+    if (rob_cs == RPL_ROB_FUZZY_ROWS || rob_cs == RPL_ROB_FUZZY_ROWS_RX) {
         /* the fuzzy-rows profile (docs/ALGORITHMS.md 5, python core.robust_profile) at 10 Hz */
         mca_cs_config_t *const cs[2] = {&cfg.cs_h, &cfg.cs_v};
         for (size_t i = 0; i < 2u; ++i) {

@@ -45,6 +45,8 @@ MCA_COLD void mca_nav_config_default(mca_nav_config_t *c)
         .cog_sigma0_rad = 0.05f,
         .gps_test_imu = 1u,
         .imu_acc_sigma_mps2 = 0.3f,
+        .gps_pos_white_m = 0.0f, /* receiver model off: the reported accuracies are R */
+        .gps_alt_white_m = 0.0f,
     };
     mca_copy_bytes(c, &d, sizeof d);
 }
@@ -103,8 +105,9 @@ MCA_COLD mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
         offsetof(mca_nav_config_t, accel_sat_mps2),    offsetof(mca_nav_config_t, gps_pos_sigma_m),
         offsetof(mca_nav_config_t, gps_alt_sigma_m),   offsetof(mca_nav_config_t, gps_vel_sigma_mps),
         offsetof(mca_nav_config_t, mag_yaw_sigma_rad), offsetof(mca_nav_config_t, cog_min_speed_mps),
-        offsetof(mca_nav_config_t, cog_sigma0_rad),    offsetof(mca_nav_config_t, imu_acc_sigma_mps2)};
-    const uint32_t nonneg = 0x1u | 0x8u | 0x10u | 0x80u | 0x100u | 0x8000u | 0x20000u;
+        offsetof(mca_nav_config_t, cog_sigma0_rad),    offsetof(mca_nav_config_t, imu_acc_sigma_mps2),
+        offsetof(mca_nav_config_t, gps_pos_white_m),   offsetof(mca_nav_config_t, gps_alt_white_m)};
+    const uint32_t nonneg = 0x1u | 0x8u | 0x10u | 0x80u | 0x100u | 0x8000u | 0x20000u | 0x40000u | 0x80000u;
     if (c->comp_mode > MCA_COMP_VELDIFF || c->yaw_source > MCA_YAW_COG || c->cs_lag_s > hist_s ||
         !mca_fields_ok(c, off, sizeof off / sizeof off[0], nonneg) || c->nogps_centripetal > 1u ||
         !isfinite(c->mag_declination_rad) || c->gps_test_imu > 1u) {
@@ -595,6 +598,13 @@ mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float
     return MCA_OK;
 }
 
+/* GPS step 4, the receiver model: the part of a position std that is white, R's; the CS
+ * GPS-error state carries the rest. white 0: all of it. */
+MCA_NOINLINE static float white_part(float acc, float white)
+{
+    return (white > 0.0f && white < acc) ? white : acc;
+}
+
 /* GPS steps 2-4 of a fix within dt_max of the last one (ALGORITHMS.md 8): the CS predict to
  * the fix and the three axis updates. Its own frame, so the attitude observations after it do
  * not carry its arrays on their (deeper) call chain. */
@@ -607,7 +617,9 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     }
     const int has_vne = (fv->vel_mask & 3u) == 3u;
     const int has_vd = (fv->vel_mask & 4u) != 0u;
-    const float h_acc = fv->h_acc_m, v_acc = fv->v_acc_m, s_acc = fv->s_acc_mps;
+    const float s_acc = fv->s_acc_mps;
+    const float h_acc = white_part(fv->h_acc_m, nav->cfg.gps_pos_white_m);
+    const float v_acc = white_part(fv->v_acc_m, nav->cfg.gps_alt_white_m);
     const uint8_t mask[3] = {(uint8_t)(MCA_CS_POS | (has_vne ? MCA_CS_VEL : 0u)),
                              (uint8_t)(MCA_CS_POS | (has_vne ? MCA_CS_VEL : 0u)),
                              (uint8_t)(((fv->has_alt != 0u && fix->fix_type >= 3u) ? MCA_CS_POS : 0u) |

@@ -582,6 +582,26 @@ def fix_rate_hz(rec: Recording, default: float = 5.0) -> float:
     return float(1.0 / np.median(dt)) if dt.size else default
 
 
+def receiver_model(
+    white_h_m: float, white_v_m: float, sigma_h_m: float, sigma_v_m: float, tau_s: float
+) -> dict[str, float]:
+    """The overrides of :func:`nav_config` (dotted names) that model a receiver's position error
+    as white noise plus a Gauss-Markov error (``docs/ALGORITHMS.md`` 8, GPS step 4): the white
+    stds ``white_h_m`` / ``white_v_m`` are the position rows' R (below a fix's reported accuracy),
+    and the CS axes' GPS-error state carries the correlated part, std ``sigma_h_m`` / ``sigma_v_m``
+    with correlation time ``tau_s``. Without it the reported accuracy is taken as white, on top of
+    the CS GPS-error state's own default: the correlated part is counted twice and a position jump
+    of a few accuracies passes the test. Values are checked by :func:`nav_config`."""
+    return {
+        "gps_pos_white_m": white_h_m,
+        "gps_alt_white_m": white_v_m,
+        "cs_h.sigma_p_m": sigma_h_m,
+        "cs_v.sigma_p_m": sigma_v_m,
+        "cs_h.tau_p_s": tau_s,
+        "cs_v.tau_p_s": tau_s,
+    }
+
+
 def robust_profile(name: str, gps_rate_hz: float = 5.0) -> dict[str, int]:
     """The overrides of :func:`nav_config` (dotted names) that set up robust profile ``name``.
 

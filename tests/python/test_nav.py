@@ -622,3 +622,90 @@ def test_fuzzy_rows_keep_observing_roll_pitch_through_a_position_fault() -> None
     assert obs[0] >= 0.9 * obs[1]
     assert dp_max < 5.0 and dv_rms < 0.1
     assert rp[0] <= 1.2 * rp[1]
+
+
+def _sim_receiver_model(params: object) -> dict[str, float]:
+    """The simulator's receiver (white plus Gauss-Markov position error) as the filter's model."""
+    p = params
+    return core.receiver_model(
+        p.gps_pos_white_h_m, p.gps_pos_white_v_m, p.gps_pos_sigma_h_m, p.gps_pos_sigma_v_m, p.gps_pos_tau_s
+    )
+
+
+def test_receiver_model_takes_the_white_part_as_r() -> None:
+    """ALGORITHMS.md 8, GPS step 4: with gps_pos_white_m / gps_alt_white_m set, the position rows'
+    R is min(reported accuracy, white)^2 and nothing else changes: the same bits as the fixes with
+    their accuracies lowered to the white parts; a white part above every reported accuracy, or 0,
+    changes nothing. Negative or non-finite white parts are refused, by the C and the golden model."""
+    import dataclasses
+
+    from mcahrs.golden import nav as gnav
+
+    rec = scenario("car_accel_brake", seed=1, duration_s=60.0).recording
+    g = rec.gnss.copy()
+    g["h_acc_m"][::3] = 0.2  # some fixes report less than the white part: their own accuracy stays R
+    rec = dataclasses.replace(rec, gnss=g)
+    lowered = g.copy()
+    lowered["h_acc_m"] = np.minimum(g["h_acc_m"], 0.3)
+    lowered["v_acc_m"] = np.minimum(g["v_acc_m"], 0.5)
+    model = core.replay(rec, core.nav_config("ground", gps_pos_white_m=0.3, gps_alt_white_m=0.5))
+    low = core.replay(dataclasses.replace(rec, gnss=lowered), core.nav_config("ground"))
+    plain = core.replay(rec, core.nav_config("ground"))
+    above = core.replay(rec, core.nav_config("ground", gps_pos_white_m=50.0, gps_alt_white_m=50.0))
+    for key in ("pos_ned_m", "vel_ned_mps", "q_nb", "cs_var", "gps_t"):
+        assert np.array_equal(model[key], low[key], equal_nan=True), key
+        assert np.array_equal(above[key], plain[key], equal_nan=True), key
+    assert not np.array_equal(model["pos_ned_m"], plain["pos_ned_m"])
+    for bad in (-0.1, math.nan, math.inf):
+        for field in ("gps_pos_white_m", "gps_alt_white_m"):
+            with pytest.raises(errors.BadConfigError):
+                core.nav_config("ground", **{field: bad})
+            with pytest.raises(errors.BadConfigError):
+                gnav.NavConfig(**{field: bad}).validate()
+
+
+def test_receiver_model_makes_the_gps_test_consistent() -> None:
+    """With the simulator's receiver modelled (white 0.3 m as R, the 2.5 m / 60 s Gauss-Markov part
+    in the CS GPS-error state), the N and E GPS test statistic T of a clean drive averages near its
+    chi-square mean, 2 for a position and a velocity row (measured 2.09 / 1.75). Taking the reported
+    2.52 m accuracy as white counts the correlated part twice, once in R and once in the CS state's
+    default 1.5 m: T averages 1.14 / 0.88, a test too loose to see a position jump of a few metres.
+    Bounds: the mean of ~1200 correlated chi-square(2) values, +-0.5."""
+    res = scenario("car_accel_brake", seed=4, duration_s=300.0)
+    rec = res.recording
+    late = rec.gnss["t_us"] > 60_000_000
+    means = {}
+    for label, over in (("white", {}), ("model", _sim_receiver_model(res.params))):
+        out = core.replay(rec, core.nav_config("ground", **over))
+        t_out = out["t_us"].astype(np.int64)
+        at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+        means[label] = out["gps_t"][at_fix][late, :2].astype(np.float64).mean(axis=0)
+    print(f"mean GPS T, N and E, after 60 s: {means}")
+    assert np.all((means["model"] > 1.5) & (means["model"] < 2.5))
+    assert np.all(means["white"] < 1.3)
+
+
+def test_receiver_model_lets_fuzzy_rows_hold_out_a_10m_position_burst() -> None:
+    """A 12 s, 10 m position burst is four reported accuracies (2.52 m). With the accuracy taken as
+    white, fuzzy rows never alarms on it and the car follows it 5.3 m; with the receiver modelled,
+    the C's alarm is raised on every fix of it and the position stays within 1.5 m of the
+    outlier-free run (measured 0.76 m). The outlier-free runs raise no alarm either way."""
+    res = scenario("car_accel_brake", seed=4, duration_s=300.0)
+    rec = res.recording
+    bad, sel = _with_gnss_fault(rec, 150.0, 162.0, (6.0, -8.0), (0.0, 0.0))
+    bits = core.FLAG_BITS["alarm_n"] | core.FLAG_BITS["alarm_e"]
+    flagged, dev, clean_alarms = {}, {}, {}
+    for label, over in (("white", {}), ("model", _sim_receiver_model(res.params))):
+        profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
+        cfg = core.nav_config("ground", **{**profile, **over})
+        clean, run = core.replay(rec, cfg), core.replay(bad, cfg)
+        t_out = run["t_us"].astype(np.int64)
+        at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+        flagged[label] = float(np.mean((run["flags"][at_fix][sel] & bits) != 0))
+        d = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
+        dev[label] = float(np.hypot(d[:, 0], d[:, 1])[sel].max())
+        clean_alarms[label] = int(np.sum((clean["flags"][at_fix] & bits) != 0))
+    print(f"burst fixes alarmed {flagged}, off the outlier-free run {dev} m, clean alarms {clean_alarms}")
+    assert flagged["model"] == 1.0 and dev["model"] < 1.5
+    assert flagged["white"] < 0.1 and dev["white"] > 4.0
+    assert clean_alarms == {"white": 0, "model": 0}

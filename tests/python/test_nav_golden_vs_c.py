@@ -76,6 +76,11 @@ CASES: dict[str, Case] = {
     "faults_car": Case("car_accel_brake", "ground", 60.0, faults=True),
     "faults_multirotor": Case("multirotor_aggressive", "multirotor", 60.0, faults=True),
     "nan_velocity_fix": Case("car_accel_brake", "ground", 40.0, nan_velocity=True),
+    # The receiver model (ALGORITHMS.md 8, GPS step 4): R from the white parts, below the
+    # simulator's reported 2.52 / 5.02 m.
+    "car_receiver_model": Case(
+        "car_accel_brake", "ground", 60.0, overrides={"gps_pos_white_m": 0.3, "gps_alt_white_m": 0.5}
+    ),
     # At rest: no course over ground (speed 0), yaw unobserved, roll/pitch only.
     "static": Case("static", "ground", 60.0, {"roll_deg": 5.0, "pitch_deg": -3.0, "yaw_deg": 40.0}),
     # Constant velocity from t = 0 (a car never at rest, aligned while moving straight).

@@ -48,11 +48,13 @@ typedef struct {
     mca_att_config_t att;       /**< attitude filter */
     uint8_t comp_mode;          /**< MCA_COMP_* */
     uint8_t yaw_source;         /**< MCA_YAW_* */
+    uint8_t nogps_centripetal;  /**< without GPS remove w x [V,0,0] (vehicle moves along its nose) */
+    uint8_t gps_test_imu;       /**< 1: robust modes test each CS update against the IMU-aided
+                                     prediction (ALGORITHMS.md 8, GPS step 3); 0: the CS's own */
     float cs_lag_s;             /**< pairing delay of the CS acceleration, [0, 0.94] (history span) */
     float gps_timeout_s;        /**< no fix this long: GPS lost, > 0 */
     float grav_period_s;        /**< observation period without GPS, > 0 */
     float nogps_rp_var_rad2;    /**< roll/pitch variance added without GPS (base), >= 0 */
-    uint8_t nogps_centripetal;  /**< without GPS remove w x [V,0,0] (vehicle moves along its nose) */
     float gravity_mps2;         /**< > 0 constant; 0 normal gravity at home */
     float imu_dt_max_s;         /**< longest accepted IMU step, > 0 */
     float init_still_s;         /**< alignment averaging window, > 0 */
@@ -67,10 +69,12 @@ typedef struct {
     float mag_yaw_sigma_rad;    /**< magnetometer heading std */
     float cog_min_speed_mps;    /**< course over ground used above this speed */
     float cog_sigma0_rad;       /**< base course-over-ground std */
-    uint8_t gps_test_imu;       /**< 1: robust modes test each CS update against the IMU-aided
-                                     prediction (ALGORITHMS.md 8, GPS step 3); 0: the CS's own */
-    float imu_acc_sigma_mps2;   /**< IMU acceleration error std of that prediction (bias, vibration,
+    float imu_acc_sigma_mps2;   /**< IMU acceleration error std of the IMU-aided prediction (bias, vibration,
                                      ring approximation; tilt and yaw errors are added), >= 0 */
+    float gps_pos_white_m;      /**< receiver model (ALGORITHMS.md 8, GPS step 4): > 0, the white part of
+                                     the horizontal position error, R = min(h_acc, this)^2, the rest
+                                     in the CS GPS-error state (cs_h sigma_p_m, tau_p_s); 0: R = h_acc^2 */
+    float gps_alt_white_m;      /**< the same for the vertical position (v_acc, cs_v), >= 0 */
 } mca_nav_config_t;
 
 /** One GPS fix. Absent accuracy: NaN or <= 0. */

@@ -224,6 +224,10 @@ class NavConfig:
     cog_sigma0_rad: float = 0.05
     gps_test_imu: int = 1  # robust modes test the CS update against the IMU-aided prediction
     imu_acc_sigma_mps2: float = 0.3  # IMU acceleration error std of that prediction
+    # Receiver model (ALGORITHMS.md 8, GPS step 4): > 0, the white part of the position error, R =
+    # min(accuracy, white)^2; the rest is the CS GPS-error state's (sigma_p_m, tau_p_s). 0: R = accuracy^2.
+    gps_pos_white_m: float = 0.0
+    gps_alt_white_m: float = 0.0
 
     @classmethod
     def ground_vehicle(cls) -> NavConfig:
@@ -277,7 +281,7 @@ class NavConfig:
             raise BadConfigError(f"yaw_source must be 0, 1 or 2, got {self.yaw_source!r}")
         if self.nogps_centripetal not in (0, 1):  # True/False compare equal to 1/0
             raise BadConfigError(f"nogps_centripetal must be 0 or 1, got {self.nogps_centripetal!r}")
-        nonneg = ("cs_lag_s", "nogps_rp_var_rad2", "gravity_mps2")
+        nonneg = ("cs_lag_s", "nogps_rp_var_rad2", "gravity_mps2", "gps_pos_white_m", "gps_alt_white_m")
         for f in fields(self):
             if f.name in ("cs_h", "cs_v", "att", "comp_mode", "yaw_source", "nogps_centripetal"):
                 continue
@@ -366,6 +370,11 @@ def _accuracy(v: Any, default: float) -> float:
     """ALGORITHMS.md 8 GPS step: NaN (or not finite, or <= 0) uses the configured default."""
     x = float(v)
     return x if (math.isfinite(x) and x > 0.0) else default
+
+
+def _white(accuracy: float, white: float) -> float:
+    """ALGORITHMS.md 8 GPS step 4, the receiver model: the std taken as the position rows' R."""
+    return min(accuracy, white) if white > 0.0 else accuracy
 
 
 # --------------------------------------------------------------------------------------
@@ -732,7 +741,8 @@ class Nav:
         vel_mask = MASK_VEL if has_ne else 0
         d_mask = (MASK_POS if (has_alt and fx.fix_type >= 3) else 0) | (MASK_VEL if has_d else 0)
         masks = (MASK_POS | vel_mask, MASK_POS | vel_mask, d_mask)
-        r_p = (fx.h_acc**2, fx.h_acc**2, fx.v_acc**2)
+        r_h = _white(fx.h_acc, self.cfg.gps_pos_white_m) ** 2
+        r_p = (r_h, r_h, _white(fx.v_acc, self.cfg.gps_alt_white_m) ** 2)
         saved = [(ax.x, ax.P, ax.s2, ax.initialised) for ax in self.cs.axes]
         try:
             self.cs.predict(T)
