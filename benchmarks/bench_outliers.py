@@ -1,7 +1,7 @@
 """GNSS outlier benchmark of the C navigation filter, once per robust update mode (DESIGN.md 5).
 
 Run: PYTHONPATH=python python benchmarks/bench_outliers.py [--seed N] [--duration S]
-     [--scenario NAME ...] [--cs-only] [--own-test] [--no-ins | --ins-only]
+     [--scenario NAME ...] [--cs-only] [--own-test] [--cs-white] [--no-ins | --ins-only]
      [--cs-seeds 1-4] [--ins-seeds 1-8]   (several seeds: the summaries only, every goal a seed,
                                            and how many seeds meet each goal)
      [--modes fuzzy-rows,...]   (CS + gravity: these robust profiles only, beside plain)
@@ -12,8 +12,12 @@ paper (001, section 3.2) tests them, and replays the clean and the faulty record
 filter (``core.replay``) in every mode: 0 plain, 1 FTA, 2 AKF, 3 fuzzy (reject, inflate, and
 rows: the CS axes coasting on the IMU while a row is out, see ``MODES``), 4 IGG-III, set on the
 three CS axes (``cs_h``, ``cs_v``) and on the attitude filter (``att``; ``--cs-only`` leaves the
-attitude filter plain). The CS updates' robust decisions test the GPS against the IMU-aided
-prediction (ALGORITHMS.md 8, GPS step 3, the default ``gps_test_imu = 1``); ``--own-test`` runs
+attitude filter plain), with the simulator's receiver modelled (``cs_receiver_model``,
+ALGORITHMS.md 8, GPS step 4: the white 0.3 / 0.5 m of its position error as R, its 2.5 / 5 m,
+60 s Gauss-Markov part in the CS GPS-error state, as the INS below models it; ``--cs-white`` takes
+the reported accuracies as white instead, as before session 16). The CS updates' robust decisions
+test the GPS against the IMU-aided prediction (ALGORITHMS.md 8, GPS step 3, the default
+``gps_test_imu = 1``); ``--own-test`` runs
 them on the CS filter's own constant-acceleration prediction instead, for comparison. A fix the
 CS robust mode flags feeds no attitude observation (ALGORITHMS.md 8, GPS step 6), so the roll/pitch
 figures measure the detector as much as the attitude filter's own robust mode.
@@ -205,17 +209,31 @@ def inject(rec: Recording, faults: Faults) -> Recording:
 
 
 OWN_TEST = False  # --own-test: gps_test_imu = 0
+CS_WHITE = False  # --cs-white: the CS + gravity runs without the receiver model
 SIM_OVERRIDES: dict = {}  # --sim NAME=VALUE: simulator parameters (SimParams fields)
 
 
-def nav_cfg(preset: str, profile: str, cs_only: bool, gps_rate_hz: float) -> object:
-    """The C navigation configuration of a robust profile (``cs_only``: the attitude filter plain)."""
+def cs_receiver_model(res: object) -> dict:
+    """The navigation filter's receiver model (ALGORITHMS.md 8, GPS step 4) set to the simulator's
+    receiver: white parts as R, its Gauss-Markov part in the CS GPS-error state. Empty with
+    --cs-white (the reported accuracies taken as white, on top of the CS state's defaults)."""
+    p = res.params
+    if CS_WHITE:
+        return {}
+    return core.receiver_model(
+        p.gps_pos_white_h_m, p.gps_pos_white_v_m, p.gps_pos_sigma_h_m, p.gps_pos_sigma_v_m, p.gps_pos_tau_s
+    )
+
+
+def nav_cfg(preset: str, profile: str, cs_only: bool, res: object) -> object:
+    """The C navigation configuration of a robust profile (``cs_only``: the attitude filter plain)
+    with the simulator's receiver model (``cs_receiver_model``)."""
     over = {
         k: v
-        for k, v in core.robust_profile(profile, gps_rate_hz).items()
+        for k, v in core.robust_profile(profile, res.params.gps_rate_hz).items()
         if not (cs_only and k.startswith("att."))
     }
-    return core.nav_config(preset, **over, gps_test_imu=0 if OWN_TEST else 1)
+    return core.nav_config(preset, **over, **cs_receiver_model(res), gps_test_imu=0 if OWN_TEST else 1)
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
@@ -563,7 +581,7 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
     )
     rows = []
     for label, mode, profile in MODES:
-        cfg = nav_cfg(preset, profile, cs_only, res.params.gps_rate_hz)
+        cfg = nav_cfg(preset, profile, cs_only, res)
         clean = replay(rec, res, cfg)
         run = replay(bad, res, cfg)
         rows.append(dict(label=label, mode=mode, rule=profile_rule(mode, profile), clean=clean, run=run))
@@ -725,7 +743,7 @@ def ins_flags(run: Run, mode: str) -> np.ndarray:
     return run.valid & ((run.out["flags"][run.rows] & core.INS_FLAG_BITS["detected"]) != 0)
 
 
-def receiver_model(res: object) -> dict:
+def ins_receiver_model(res: object) -> dict:
     """The INS's receiver position error model (ALGORITHMS.md 10, GNSS update step 3) set to the
     simulator's receiver: its Gauss-Markov correlation time and its white parts."""
     p = res.params
@@ -745,7 +763,7 @@ def bench_ins_scenario(name: str, seed: int, duration_s: float, white: bool = Fa
     t_fix_s = rec.gnss["t_us"] * 1e-6
     faults = plan_faults(t_fix_s, duration_s, np.random.default_rng(seed + 1000))
     bad = inject(rec, faults)
-    receiver = {} if white else receiver_model(res)
+    receiver = {} if white else ins_receiver_model(res)
     how = "accuracies taken as white"
     if not white:
         r = receiver
@@ -1004,7 +1022,7 @@ def _seed_list(spec: str) -> list[int]:
 
 
 def main() -> None:
-    global OWN_TEST, MODES
+    global OWN_TEST, CS_WHITE, MODES
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--duration", type=float, default=900.0, help="seconds per scenario (>= 810)")
@@ -1015,6 +1033,11 @@ def main() -> None:
     ap.add_argument("--ins-only", action="store_true", help="only the INS runs")
     ap.add_argument(
         "--ins-white", action="store_true", help="INS without the receiver error model (accuracies as white)"
+    )
+    ap.add_argument(
+        "--cs-white",
+        action="store_true",
+        help="CS + gravity without the receiver model (accuracies as white)",
     )
     ap.add_argument("--ins-seeds", help="INS only, these seeds (e.g. 1-8 or 1,3): a summary line a seed")
     ap.add_argument("--cs-seeds", help="CS + gravity only, these seeds (e.g. 1-4): every mode a seed")
@@ -1039,13 +1062,15 @@ def main() -> None:
             ap.error(f"--modes: unknown profile(s) {', '.join(bad)}; known: {', '.join(known)}")
         MODES = tuple(m for m in MODES if m[2] == "plain" or m[2] in wanted)
     OWN_TEST = args.own_test
+    CS_WHITE = args.cs_white
     for item in args.sim:
         key, _, text = item.partition("=")
         SIM_OVERRIDES[key.strip()] = ast.literal_eval(text.strip())
     t_start = time.perf_counter()
     names = args.scenario or list(SCENARIOS)
     where = "CS N/E/D filters only" if args.cs_only else "CS N/E/D and attitude filters"
-    print(f"GNSS outlier benchmark: C navigation filter (core.replay), robust mode on the {where}.")
+    rx = "accuracies as white" if CS_WHITE else "the simulator's receiver modelled (white R, GM in the CS)"
+    print(f"GNSS outlier benchmark: C navigation filter (core.replay), robust mode on the {where}; {rx}.")
     print(
         "Detection per axis: the fuzzy modes' own alarm (the replay output's alarm flags); the others'\n"
         "rule on the axis' GPS T (plain: single threshold T > chi2_m(0.005); FTA T > chi2_m(1e-4);\n"
