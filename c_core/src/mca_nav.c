@@ -611,10 +611,6 @@ MCA_NOINLINE static float white_part(float acc, float white)
 MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix, const mca_fix_view_t *fv,
                                         const float ned[3], float t)
 {
-    mca_status_t st = cs_predict(nav, fix->t_us, t);
-    if (st != MCA_OK) {
-        return st;
-    }
     const int has_vne = (fv->vel_mask & 3u) == 3u;
     const int has_vd = (fv->vel_mask & 4u) != 0u;
     const float s_acc = fv->s_acc_mps;
@@ -628,12 +624,18 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     const float rv[3] = {s_acc * s_acc, s_acc * s_acc, s_acc * s_acc};
     /* The values were checked where the fix entered (mca_gps_fix_read) and the masks are well
      * formed; what is left of mca_cs3_update's checks is that a variance in use is finite and
-     * > 0 (an accuracy over ~1.8e19 or under ~1e-19 squares out of range). */
+     * > 0 (an accuracy over ~1.8e19 or under ~1e-19 squares out of range). Checked before the
+     * predict: a fix refused after it would leave the CS at the fix time while t_lastfix stays,
+     * and the next fix would predict that interval again. */
     for (size_t i = 0; i < 3u; ++i) {
         if (((mask[i] & MCA_CS_POS) != 0u && !mca_positive(rp[i])) ||
             ((mask[i] & MCA_CS_VEL) != 0u && !mca_positive(rv[i]))) {
             return MCA_ERR_BAD_ARG;
         }
+    }
+    mca_status_t st = cs_predict(nav, fix->t_us, t);
+    if (st != MCA_OK) {
+        return st;
     }
     /* No report (T is read from the axis memory; N and E can then share one covariance
      * update). An axis can fail only numerically, and then it is left unchanged
