@@ -57,7 +57,9 @@ False alarms are counted twice: on the clean fixes of the run with outliers (nea
 come within 10 s after a fault ends, while the filter sheds what it let in: the fix is clean, the
 state is not; the benchmark prints how many) and on the outlier-free run (alarms with nothing
 wrong). Per fault it also prints whether each mode's rule flagged it at all, and after how many
-fixes.
+fixes, and per fault class (``FAULT_CLASSES``: single, burst or the 100 s fault; position,
+velocity or both; small or large) the share of its fixes each mode flagged, per scenario and, with
+``--cs-seeds`` / ``--ins-seeds``, over the seeds.
 """
 
 from __future__ import annotations
@@ -380,6 +382,42 @@ def sliding_window_flags(run: Run) -> np.ndarray:
     return flags.any(axis=1)
 
 
+# Detection by what a fault is and how large: the velocity faults below 2 m/s are the ones a
+# filter that coasts on its IMU without an accelerometer-bias estimate cannot tell from its own
+# coasting error over a 10-20 s burst (docs/OUTLIERS.md, session 17).
+FAULT_CLASSES = (
+    "single, position 5-50 m",
+    "single, velocity 1-2 m/s",
+    "single, velocity 2-5 m/s",
+    "burst, position 5-20 m",
+    "burst, position 20-50 m",
+    "burst, velocity 1-2 m/s",
+    "burst, velocity 2-5 m/s",
+    "burst, both, velocity 1-2 m/s",
+    "burst, both, velocity 2-5 m/s",
+    "100 s, position 30 m",
+)
+SMALL_VEL_MPS = 2.0
+SMALL_POS_M = 20.0
+
+
+def fault_classes(faults: Faults) -> np.ndarray:
+    """Per fix its index in :data:`FAULT_CLASSES` (-1: clean)."""
+    v = np.hypot(faults.vel_ned_mps[:, 0], faults.vel_ned_mps[:, 1])
+    p = np.hypot(faults.pos_ned_m[:, 0], faults.pos_ned_m[:, 1])
+    big_v, big_p = (v >= SMALL_VEL_MPS).astype(int), (p >= SMALL_POS_M).astype(int)
+    has_v, has_p = v > 0.0, p > 0.0
+    out = np.full(faults.kind.shape, -1)
+    single, burst = faults.kind == 1, faults.kind == 2
+    out[single & has_p] = 0
+    out[single & has_v] = (1 + big_v)[single & has_v]
+    out[burst & has_p & ~has_v] = (3 + big_p)[burst & has_p & ~has_v]
+    out[burst & has_v & ~has_p] = (5 + big_v)[burst & has_v & ~has_p]
+    out[burst & has_v & has_p] = (7 + big_v)[burst & has_v & has_p]
+    out[faults.kind == 3] = 9
+    return out
+
+
 @dataclasses.dataclass
 class Detection:
     detected: int
@@ -387,6 +425,7 @@ class Detection:
     false_alarms: int
     clean: int
     by_kind: dict[str, tuple[int, int]]  # kind -> (detected, faulty)
+    by_class: tuple[tuple[int, int], ...]  # FAULT_CLASSES -> (detected, faulty)
 
     @property
     def rate(self) -> float:
@@ -413,13 +452,34 @@ def score(flags: np.ndarray, faults: Faults, valid: np.ndarray) -> Detection:
         name: (int(np.sum(flags & ok & (faults.kind == k))), int(np.sum(ok & (faults.kind == k))))
         for k, name in KIND_NAMES.items()
     }
+    cls = fault_classes(faults)
+    in_class = [ok & (cls == c) for c in range(len(FAULT_CLASSES))]
+    by_class = tuple((int(np.sum(flags & sel)), int(np.sum(sel))) for sel in in_class)
     return Detection(
         detected=int(np.sum(flags & f & ok)),
         missed=int(np.sum(~flags & f & ok)),
         false_alarms=int(np.sum(flags & ~f & ok)),
         clean=int(np.sum(~f & ok)),
         by_kind=by_kind,
+        by_class=by_class,
     )
+
+
+def class_table(columns: list[tuple[str, list[tuple[int, int]]]]) -> None:
+    """Detection per fault class (:data:`FAULT_CLASSES`), one column a detector: the faulty fixes it
+    flagged, of how many."""
+    print(f"{'fault':30s} " + " ".join(f"{name:>22s}" for name, _ in columns))
+    for c, cname in enumerate(FAULT_CLASSES):
+        cells = []
+        for _, by_class in columns:
+            a, b = by_class[c]
+            cells.append(f"{100.0 * a / b:6.1f}% of {b:6d}" if b else f"{'-':>16s}")
+        print(f"{cname:30s} " + " ".join(f"{x:>22s}" for x in cells))
+
+
+def sum_classes(counts: list) -> list[tuple[int, int]]:
+    """Per-class counts (each a sequence of (flagged, faulty) per :data:`FAULT_CLASSES`) summed."""
+    return [(sum(c[k][0] for c in counts), sum(c[k][1] for c in counts)) for k in range(len(FAULT_CLASSES))]
 
 
 def fault_events(faults: Faults) -> list[tuple[int, np.ndarray]]:
@@ -662,6 +722,8 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
     print(f"{'mode':10s} {EVENT_HEADER}")
     for r in rows:
         print(f"{r['label']:10s} {r['events']}")
+    print("\nFixes flagged by fault class (fuzzy: its alarm; the others: their rule on T):")
+    class_table([(r["label"], list(r["det"].by_class)) for r in rows])
 
     plain_run = rows[0]["run"]
     sw = score(sliding_window_flags(plain_run), faults, plain_run.valid)
@@ -831,6 +893,7 @@ def mode_summary(rs: list[dict], label: str, plain: bool, fuzzy: bool) -> dict:
         swfa0=sum(r["sw_clean_fa"] for r in rs),
         recs=recs,
         rec_ok=not diverged and all(x is not None and x <= GOAL_RECOVERY_FIXES for x in recs),
+        by_class=sum_classes([r["det"].by_class for r in rs]),
     )
     if plain:
         out["ratio_ok"] = min(ratios) >= GOAL_PLAIN_RP_RATIO
@@ -960,11 +1023,19 @@ def ins_seeds(seeds: list[int], names: list[str], duration_s: float, white: bool
     print("\n".join(lines))
     print(f"fuzzy {seed_counts(sms_fuzzy, False)}")
     print(f"plain {seed_counts(sms_plain, True)}")
+    print(f"\nINS, faulty fixes flagged by fault class over the {len(seeds)} seeds and every scenario:")
+    cols = [(ss[0]["label"], sum_classes([sm["by_class"] for sm in ss])) for ss in (sms_fuzzy, sms_plain)]
+    class_table(cols)
 
 
-def cs_summary(results: dict[str, list[dict]]) -> None:
-    """The CS + gravity filter's modes over every scenario of ``results``, against the goals."""
+def cs_summary(results: dict[str, list[dict]], classes: bool = False) -> None:
+    """The CS + gravity filter's modes over every scenario of ``results``, against the goals
+    (``classes``: with the detection per fault class)."""
     summary_table("all scenarios", results, MODES, cs_mode_summary, 0)
+    if classes:
+        print("\nFaulty fixes flagged by fault class, every scenario:")
+        by_mode = [cs_mode_summary(results, k)["by_class"] for k in range(len(MODES))]
+        class_table([(m[0], b) for m, b in zip(MODES, by_mode, strict=True)])
 
 
 def cs_seeds(seeds: list[int], names: list[str], duration_s: float, cs_only: bool) -> None:
@@ -1003,6 +1074,8 @@ def cs_seeds(seeds: list[int], names: list[str], duration_s: float, cs_only: boo
             print(f"{label if j == 0 else '':10s} {line}")
         print(f"{'':10s} every goal on every seed: {_goal(met[k])}")
         print(f"{'':10s} {seed_counts(sms[k], mode == 0)}")
+    print(f"\nFaulty fixes flagged by fault class over the {len(seeds)} seeds and every scenario:")
+    class_table([(m[0], sum_classes([sm["by_class"] for sm in sms[k]])) for k, m in enumerate(MODES)])
 
 
 def _between(run: Run, a: float, b: float) -> np.ndarray:
@@ -1093,7 +1166,7 @@ def main() -> None:
         print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
         return
     results = {n: bench_scenario(n, SCENARIOS[n], args.seed, args.duration, args.cs_only) for n in names}
-    cs_summary(results)
+    cs_summary(results, classes=True)
     print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
 
 

@@ -1,0 +1,64 @@
+"""The outlier benchmark's fault bookkeeping (benchmarks/bench_outliers.py): every injected fault
+fix falls in exactly one fault class, and a class holds only faults of its kind and size, so the
+per-class detection it prints counts what its name says."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_outliers.py"
+
+
+@pytest.fixture(scope="module")
+def bench():  # noqa: ANN201 - the benchmark module
+    spec = importlib.util.spec_from_file_location("bench_outliers", _PATH)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["bench_outliers"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.parametrize("seed", [1, 7, 9, 40])
+def test_every_fault_fix_has_one_class_of_its_kind_and_size(bench, seed: int) -> None:
+    t_fix_s = np.arange(0.0, 900.0, 0.2)
+    faults = bench.plan_faults(t_fix_s, 900.0, np.random.default_rng(seed + 1000))
+    cls = bench.fault_classes(faults)
+    np.testing.assert_array_equal(cls >= 0, faults.faulty)
+    v = np.hypot(faults.vel_ned_mps[:, 0], faults.vel_ned_mps[:, 1])
+    p = np.hypot(faults.pos_ned_m[:, 0], faults.pos_ned_m[:, 1])
+    for c, name in enumerate(bench.FAULT_CLASSES):
+        sel = cls == c
+        kind = {"single": 1, "burst": 2, "100 s": 3}[name.split(",")[0]]
+        assert np.all(faults.kind[sel] == kind), name
+        if "velocity" in name:
+            lo, hi = (1.0, 2.0) if "1-2 m/s" in name else (2.0, 5.0)
+            assert np.all((v[sel] >= lo) & (v[sel] < hi + 1e-9)), name
+        else:
+            assert np.all(v[sel] == 0.0), name
+        if "position" in name or "both" in name:
+            assert np.all(p[sel] > 0.0), name
+            if "5-20 m" in name:
+                assert np.all(p[sel] < 20.0), name
+            if "20-50 m" in name:
+                assert np.all(p[sel] >= 20.0), name
+        else:
+            assert np.all(p[sel] == 0.0), name
+
+
+def test_class_counts_add_up_to_the_detection_counts(bench) -> None:
+    """score(): the per-class flagged and faulty fixes sum to the detected and faulty fixes."""
+    t_fix_s = np.arange(0.0, 900.0, 0.2)
+    faults = bench.plan_faults(t_fix_s, 900.0, np.random.default_rng(1003))
+    rng = np.random.default_rng(5)
+    flags = rng.random(t_fix_s.size) < 0.7
+    valid = rng.random(t_fix_s.size) < 0.95
+    det = bench.score(flags, faults, valid)
+    assert sum(a for a, _ in det.by_class) == det.detected
+    assert sum(b for _, b in det.by_class) == det.detected + det.missed
+    both = bench.sum_classes([det.by_class, det.by_class])
+    assert both == [(2 * a, 2 * b) for a, b in det.by_class]
