@@ -894,6 +894,7 @@ def mode_summary(rs: list[dict], label: str, plain: bool, fuzzy: bool) -> dict:
         recs=recs,
         rec_ok=not diverged and all(x is not None and x <= GOAL_RECOVERY_FIXES for x in recs),
         by_class=sum_classes([r["det"].by_class for r in rs]),
+        during=[r["long"].max_err_during_m for r in rs],
     )
     if plain:
         out["ratio_ok"] = min(ratios) >= GOAL_PLAIN_RP_RATIO
@@ -932,6 +933,11 @@ def goal_text(sm: dict, plain: bool) -> str:
             f"(>= {100.0 * GOAL_FUZZY_FA_CUT:.0f}%: {_goal(cut >= GOAL_FUZZY_FA_CUT)})"
         )
     return goal + f"; no divergence, recovery <= {GOAL_RECOVERY_FIXES} fixes: {_goal(sm['rec_ok'])}"
+
+
+def _during(sm: dict) -> str:
+    """The largest horizontal error under the 100 s fault of each vehicle of a mode summary (m)."""
+    return " ".join(f"{x:.0f}" for x in sm["during"])
 
 
 def _recs(recs: list[int | None]) -> str:
@@ -1012,13 +1018,14 @@ def ins_seeds(seeds: list[int], names: list[str], duration_s: float, white: bool
         del results
         lines.append(
             f"{seed:4d} {max(fz['ratios']):11.2f} {100.0 * fz['rate']:9.1f}% {fz['fa']:5d} {fz['swfa']:7d} "
-            f"{100.0 * fz['cut']:8.0f}% {_recs(fz['recs']):>10s} {min(pl['ratios']):18.2f}   "
+            f"{100.0 * fz['cut']:8.0f}% {_recs(fz['recs']):>10s} {_during(fz):>10s} "
+            f"{min(pl['ratios']):18.2f}   "
             f"fuzzy {_goal(fz['all_ok'])}, plain >= {GOAL_PLAIN_RP_RATIO:.1f}x {_goal(pl['ratio_ok'])}"
         )
     print(f"\n=== INS, fuzzy detector, seeds {', '.join(map(str, seeds))} ===")
     print(
         f"{'seed':>4s} {'worst ratio':>11s} {'detection':>10s} {'FA':>5s} {'SW4 FA':>7s} {'below SW4':>9s} "
-        f"{'recovery':>10s} {'plain, least ratio':>18s}   every goal"
+        f"{'recovery':>10s} {'max err':>10s} {'plain, least ratio':>18s}   every goal"
     )
     print("\n".join(lines))
     print(f"fuzzy {seed_counts(sms_fuzzy, False)}")
@@ -1055,7 +1062,8 @@ def cs_seeds(seeds: list[int], names: list[str], duration_s: float, cs_only: boo
             ratio = min(sm["ratios"]) if mode == 0 else max(sm["ratios"])
             fuzzy = f"{100.0 * sm['rate']:9.1f}% {100.0 * sm['cut']:8.0f}%" if mode == 3 else f"{'':19s}"
             by_mode[k].append(
-                f"{seed:4d} {ratio:11.2f} {fuzzy} {_recs(sm['recs']):>16s}   {_goal(sm['all_ok'])}"
+                f"{seed:4d} {ratio:11.2f} {fuzzy} {_recs(sm['recs']):>16s} {_during(sm):>14s}   "
+                f"{_goal(sm['all_ok'])}"
             )
             met[k] = met[k] and sm["all_ok"]
             sms[k].append(sm)
@@ -1063,11 +1071,12 @@ def cs_seeds(seeds: list[int], names: list[str], duration_s: float, cs_only: boo
     print(f"\n=== CS + gravity filter, seeds {', '.join(map(str, seeds))} ===")
     print(
         "ratio: the worst robust one over the vehicles (plain: the least); fuzzy detector: detection,\n"
-        "false alarms below SW4 on the same T; recovery: fixes after the 100 s fault (- never)"
+        "false alarms below SW4 on the same T; recovery: fixes after the 100 s fault (- never);\n"
+        "max err: the largest horizontal error during the 100 s fault (m), per vehicle"
     )
     print(
         f"{'mode':10s} {'seed':>4s} {'ratio':>11s} {'detection':>10s} {'below SW4':>9s} "
-        f"{'recovery':>16s}   every goal"
+        f"{'recovery':>16s} {'max err':>14s}   every goal"
     )
     for k, (label, mode, _) in enumerate(MODES):
         for j, line in enumerate(by_mode[k]):
