@@ -71,6 +71,7 @@ import dataclasses
 import io
 import math
 import time
+from collections.abc import Sequence
 
 import numpy as np
 import pymap3d
@@ -465,7 +466,7 @@ def score(flags: np.ndarray, faults: Faults, valid: np.ndarray) -> Detection:
     )
 
 
-def class_table(columns: list[tuple[str, list[tuple[int, int]]]]) -> None:
+def class_table(columns: list[tuple[str, Sequence[tuple[int, int]]]]) -> None:
     """Detection per fault class (:data:`FAULT_CLASSES`), one column a detector: the faulty fixes it
     flagged, of how many."""
     print(f"{'fault':30s} " + " ".join(f"{name:>22s}" for name, _ in columns))
@@ -477,7 +478,7 @@ def class_table(columns: list[tuple[str, list[tuple[int, int]]]]) -> None:
         print(f"{cname:30s} " + " ".join(f"{x:>22s}" for x in cells))
 
 
-def sum_classes(counts: list) -> list[tuple[int, int]]:
+def sum_classes(counts: Sequence[Sequence[tuple[int, int]]]) -> list[tuple[int, int]]:
     """Per-class counts (each a sequence of (flagged, faulty) per :data:`FAULT_CLASSES`) summed."""
     return [(sum(c[k][0] for c in counts), sum(c[k][1] for c in counts)) for k in range(len(FAULT_CLASSES))]
 
@@ -723,7 +724,7 @@ def bench_scenario(name: str, preset: str, seed: int, duration_s: float, cs_only
     for r in rows:
         print(f"{r['label']:10s} {r['events']}")
     print("\nFixes flagged by fault class (fuzzy: its alarm; the others: their rule on T):")
-    class_table([(r["label"], list(r["det"].by_class)) for r in rows])
+    class_table([(r["label"], r["det"].by_class) for r in rows])
 
     plain_run = rows[0]["run"]
     sw = score(sliding_window_flags(plain_run), faults, plain_run.valid)
