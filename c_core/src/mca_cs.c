@@ -416,6 +416,12 @@ MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float
     /* after an aided predict the mode tests z against the IMU-aided prediction, covariance s + R */
     const int aided = ax->aid.valid != 0u;
     float nu_t[MCA_CS_NZ], c_t[MCA_CS_NZ * MCA_CS_NZ];
+    /* the IMU-aided prediction less the CS one (p, v): this interval's IMU increments in place of
+     * the CS acceleration's, the move of a coast that starts at this update */
+    float shift[MCA_CS_NZ];
+    for (size_t q = 0; q < MCA_CS_NZ; ++q) {
+        shift[q] = ax->aid.y[q] - ax->x[3u + q] - ax->x[q];
+    }
     if (aided) {
         aid_test(&ax->aid, zq, rq, rows, m, nu_t, c_t);
     }
@@ -427,12 +433,15 @@ MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float
     if (su == MCA_OK) {
         ax->aid.valid = 0u;
         /* coasting (ALGORITHMS.md 2) while the velocity row is out or the update was rejected; a
-         * coast that starts at a rejected aided update starts from the IMU-aided prediction */
-        if (ax->rs.n_reject > 0u && aided && ax->aid.out == 0u && ax->cfg.coast != 0u) {
-            ax->x[0] = ax->aid.y[0] - ax->x[3];
-            ax->x[1] = ax->aid.y[1] - ax->x[4];
+         * coast that starts at an aided update starts from the IMU-aided prediction: p and v
+         * moved by shift after the rows applied (none when rejected, the position otherwise) */
+        const uint8_t out =
+            (uint8_t)(ax->rs.n_reject > 0u || ((mask & MCA_CS_VEL) != 0u && ax->rs.n_removed[m - 1u] > 0u));
+        if (out != 0u && aided && ax->aid.out == 0u && ax->cfg.coast != 0u) {
+            ax->x[0] += shift[0];
+            ax->x[1] += shift[1];
         }
-        ax->aid.out = (uint8_t)(ax->rs.n_reject > 0u || ((mask & MCA_CS_VEL) != 0u && ax->rs.n_removed[m - 1u] > 0u));
+        ax->aid.out = out;
     }
     return su;
 }

@@ -627,11 +627,9 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
      * > 0 (an accuracy over ~1.8e19 or under ~1e-19 squares out of range). Checked before the
      * predict: a fix refused after it would leave the CS at the fix time while t_lastfix stays,
      * and the next fix would predict that interval again. */
-    for (size_t i = 0; i < 3u; ++i) {
-        if (((mask[i] & MCA_CS_POS) != 0u && !mca_positive(rp[i])) ||
-            ((mask[i] & MCA_CS_VEL) != 0u && !mca_positive(rv[i]))) {
-            return MCA_ERR_BAD_ARG;
-        }
+    if (!mca_positive(rp[0]) || ((mask[2] & MCA_CS_POS) != 0u && !mca_positive(rp[2])) ||
+        ((has_vne || has_vd) && !mca_positive(rv[0]))) { /* N and E always take their position; */
+        return MCA_ERR_BAD_ARG;                             /* rv is one variance on every axis */
     }
     mca_status_t st = cs_predict(nav, fix->t_us, t);
     if (st != MCA_OK) {

@@ -254,6 +254,43 @@ static void test_coast_starts_when_the_velocity_is_out(void)
     }
 }
 
+/* A coast that starts with the velocity row out and the position applied starts from the
+ * IMU-aided prediction too (ALGORITHMS.md 2, coasting): the state is the position-only update's,
+ * moved by the aided prediction less the CS one (here the CS acceleration's 0.1 m/s over the
+ * interval, which the IMU did not see: a maneuver onset the CS lags). */
+static void test_coast_start_with_the_position_applied(void)
+{
+    mca_cs_config_t h;
+    fuzzy_rows_config(&h);
+    mca_cs_axis_t ax;
+    CHECK_EQ_INT(mca_cs_axis_init(&ax, &h, 0.0f, 5.0f), MCA_OK);
+    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f};
+    const float t = 0.2f;
+    float ws[MCA_CS_WS_LEN];
+    mca_update_report_t rep;
+    float p = 0.0f;
+    for (size_t n = 0; n < 30u; ++n) {
+        p += 5.0f * t;
+        CHECK_EQ_INT(mca_cs_axis_predict_aided(&ax, t, &inc), MCA_OK);
+        CHECK_EQ_INT(mca_cs_axis_update(&ax, p, 5.0f, 1.0f, 0.01f, MCA_CS_POS | MCA_CS_VEL, ws, &rep), MCA_OK);
+    }
+    ax.x[2] = 0.5f;
+    p += 5.0f * t;
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&ax, t, &inc), MCA_OK);
+    const float shift_p = ax.aid.y[0] - ax.x[3] - ax.x[0], shift_v = ax.aid.y[1] - ax.x[4] - ax.x[1];
+    CHECK_CLOSE(shift_v, -0.1, 1e-5);
+    mca_cs_axis_t ref = ax; /* the same prior, the position row alone */
+    CHECK_EQ_INT(mca_cs_axis_update(&ax, p, 8.0f, 1.0f, 0.01f, MCA_CS_POS | MCA_CS_VEL, ws, &rep), MCA_OK);
+    CHECK_EQ_INT(rep.rejected, 0);
+    CHECK_EQ_INT(ax.aid.out, 1); /* a 3 m/s velocity fault left out: the coast starts */
+    CHECK_EQ_INT(mca_cs_axis_update(&ref, p, 0.0f, 1.0f, 0.01f, MCA_CS_POS, ws, &rep), MCA_OK);
+    CHECK_CLOSE(ax.x[0], ref.x[0] + shift_p, 1e-5);
+    CHECK_CLOSE(ax.x[1], ref.x[1] + shift_v, 1e-5);
+    for (size_t i = 2; i < MCA_CS_NX; ++i) {
+        CHECK_CLOSE(ax.x[i], ref.x[i], 1e-6);
+    }
+}
+
 /* Fuzzy rows' N/E pair (ALGORITHMS.md 5): a 50 m north jump that N alarms on, with a 4 m east
  * share that E alone lets in (its T of 12 is below TD3 on a first epoch), leaves E's position
  * out too when both axes test position and velocity against the IMU; E's velocity stays in. With
@@ -355,6 +392,7 @@ int main(void)
     test_long_run_stays_spd();
     test_coasting_predict();
     test_coast_starts_when_the_velocity_is_out();
+    test_coast_start_with_the_position_applied();
     test_ne_pair_leaves_the_partner_rows_out();
     test_ne_pair_shares_the_rows_out_with_the_failing_ones();
     TEST_MAIN_END();

@@ -42,8 +42,8 @@ typedef struct {
     uint8_t adaptive;       /**< 0 fixed sigma_a0, 1 current-statistical adaptive */
     uint8_t coast;          /**< 1: after an update that left the velocity row out or was rejected
                                  (robust modes), an IMU-aided predict moves p and v with the IMU
-                                 increments (coasting), from the aided prediction when the coast
-                                 starts at a rejection */
+                                 increments (coasting), from the aided prediction (the update
+                                 that starts the coast moves p and v by it, ALGORITHMS.md 2) */
     mca_robust_config_t robust; /**< robust/adaptive mode of the GPS updates */
 } mca_cs_config_t;
 
