@@ -6,6 +6,8 @@ Run: PYTHONPATH=python python benchmarks/bench_outliers.py [--seed N] [--duratio
                                            and how many seeds meet each goal)
      [--modes fuzzy-rows,...]   (CS + gravity: these robust profiles only, beside plain)
      [--sim NAME=VALUE ...]   (simulator parameters, e.g. a gyro scale-factor error)
+     [--set NAME=VALUE ...]   (navigation configuration of the CS + gravity runs, e.g.
+                               imu_acc_sigma_mps2=0.15)
 
 Prints, never asserts. For each simulator scenario it injects GNSS faults the way the detection
 paper (001, section 3.2) tests them, and replays the clean and the faulty recording through the C
@@ -77,6 +79,7 @@ import numpy as np
 import pymap3d
 
 from mcahrs import core
+from mcahrs.cli import parse_overrides
 from mcahrs.golden.robust import chi2_quantile, fuzzy_detector_step
 from mcahrs.samples import GNSS_HAS_ALT, GNSS_HAS_VEL_D, GNSS_HAS_VEL_NE, Recording
 from mcahrs.sim import scenario
@@ -214,6 +217,7 @@ def inject(rec: Recording, faults: Faults) -> Recording:
 OWN_TEST = False  # --own-test: gps_test_imu = 0
 CS_WHITE = False  # --cs-white: the CS + gravity runs without the receiver model
 SIM_OVERRIDES: dict = {}  # --sim NAME=VALUE: simulator parameters (SimParams fields)
+NAV_OVERRIDES: dict = {}  # --set NAME=VALUE: navigation configuration, every CS + gravity run
 
 
 def cs_receiver_model(res: object) -> dict:
@@ -230,13 +234,14 @@ def cs_receiver_model(res: object) -> dict:
 
 def nav_cfg(preset: str, profile: str, cs_only: bool, res: object) -> object:
     """The C navigation configuration of a robust profile (``cs_only``: the attitude filter plain)
-    with the simulator's receiver model (``cs_receiver_model``)."""
+    with the simulator's receiver model (``cs_receiver_model``), then ``--set``."""
     over = {
         k: v
         for k, v in core.robust_profile(profile, res.params.gps_rate_hz).items()
         if not (cs_only and k.startswith("att."))
     }
-    return core.nav_config(preset, **over, **cs_receiver_model(res), gps_test_imu=0 if OWN_TEST else 1)
+    over |= cs_receiver_model(res) | {"gps_test_imu": 0 if OWN_TEST else 1}
+    return core.nav_config(preset, **(over | NAV_OVERRIDES))
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
@@ -1136,7 +1141,16 @@ def main() -> None:
         metavar="NAME=VALUE",
         help="simulator parameter (SimParams field), e.g. 'gyro_scale_ppm=(5000,-5000,5000)'; repeatable",
     )
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="navigation configuration field of every CS + gravity run, after the profile's (as "
+        "mcahrs replay --set), e.g. imu_acc_sigma_mps2=0.15; repeatable",
+    )
     args = ap.parse_args()
+    NAV_OVERRIDES.update(parse_overrides(args.set))
     if args.modes:
         known = {m[2]: m for m in MODES}
         wanted = [w.strip() for w in args.modes.split(",") if w.strip()]
@@ -1153,6 +1167,7 @@ def main() -> None:
     names = args.scenario or list(SCENARIOS)
     where = "CS N/E/D filters only" if args.cs_only else "CS N/E/D and attitude filters"
     rx = "accuracies as white" if CS_WHITE else "the simulator's receiver modelled (white R, GM in the CS)"
+    rx += "".join(f"; {k} = {v!r}" for k, v in NAV_OVERRIDES.items())
     print(f"GNSS outlier benchmark: C navigation filter (core.replay), robust mode on the {where}; {rx}.")
     print(
         "Detection per axis: the fuzzy modes' own alarm (the replay output's alarm flags); the others'\n"

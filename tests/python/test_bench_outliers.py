@@ -62,3 +62,21 @@ def test_class_counts_add_up_to_the_detection_counts(bench) -> None:
     assert sum(b for _, b in det.by_class) == det.detected + det.missed
     both = bench.sum_classes([det.by_class, det.by_class])
     assert both == [(2 * a, 2 * b) for a, b in det.by_class]
+
+
+def test_set_overrides_every_cs_run_after_the_profile(bench, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--set`` (NAV_OVERRIDES) reaches the configuration of every CS + gravity profile, after the
+    profile's own overrides and the receiver model; without it the defaults stand."""
+    from mcahrs import core
+
+    res = type("Res", (), {"params": type("P", (), {"gps_rate_hz": 5.0})()})()
+    monkeypatch.setattr(bench, "cs_receiver_model", lambda _res: {})
+    default = core.nav_config("fixedwing").imu_acc_sigma_mps2
+    assert bench.nav_cfg("fixedwing", "fuzzy-rows", False, res).imu_acc_sigma_mps2 == default
+    monkeypatch.setitem(bench.NAV_OVERRIDES, "imu_acc_sigma_mps2", 0.125)
+    monkeypatch.setitem(bench.NAV_OVERRIDES, "cs_h.coast", 0)
+    for profile in ("plain", "fuzzy-rows"):
+        cfg = bench.nav_cfg("fixedwing", profile, False, res)
+        assert cfg.imu_acc_sigma_mps2 == 0.125, profile
+        assert cfg.cs_h.coast == 0, profile  # after fuzzy-rows' coast = 1
+    assert bench.nav_cfg("fixedwing", "fuzzy-rows", False, res).cs_h.robust.fuzzy_reject == 2
