@@ -223,10 +223,11 @@ static mca_status_t inc_check(const mca_cs_inc_t *inc)
     if (inc == NULL) {
         return MCA_OK;
     }
-    if (!isfinite(inc->dp_m) || !isfinite(inc->dv_mps) || !isfinite(inc->acc_var_m2ps4)) {
+    const float v[4] = {inc->dp_m, inc->dv_mps, inc->acc_var_m2ps4, inc->coast_var_m2ps4};
+    if (!mca_all_finite(v, 4u)) {
         return MCA_ERR_NONFINITE;
     }
-    return inc->acc_var_m2ps4 >= 0.0f ? MCA_OK : MCA_ERR_BAD_ARG;
+    return inc->acc_var_m2ps4 >= 0.0f && inc->coast_var_m2ps4 >= 0.0f ? MCA_OK : MCA_ERR_BAD_ARG;
 }
 
 /* The IMU-aided test prior from the posterior about to be predicted over t (ALGORITHMS.md 2),
@@ -269,12 +270,13 @@ static void axis_predict_with(mca_cs_axis_t *ax, float t, float s2, const float 
         axis_aid(ax, t, phi, q1, inc); /* from the posterior, before it is predicted */
     }
     /* coasting (ALGORITHMS.md 2): after an update that left the velocity row out, p and v follow
-     * the IMU increments instead of the acceleration state, and P takes the IMU's error variance va */
+     * the IMU increments instead of the acceleration state, and P takes the IMU's persisting error
+     * variance va */
     const int coast = inc != NULL && ax->cfg.coast != 0u && ax->aid.out != 0u;
     /* mean: eq. 17, Phi1 = constant acceleration + Gauss-Markov decay of eps */
     const float a = ax->x[2];
     const float dp = coast ? inc->dp_m : 0.5f * t * t * a, dv = coast ? inc->dv_mps : t * a;
-    const float va = coast ? inc->acc_var_m2ps4 : 0.0f;
+    const float va = coast ? inc->coast_var_m2ps4 : 0.0f;
     ax->x[0] += t * ax->x[1] + dp;
     ax->x[1] += dv;
     ax->x[3] *= phi[18];

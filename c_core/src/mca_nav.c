@@ -45,6 +45,7 @@ MCA_COLD void mca_nav_config_default(mca_nav_config_t *c)
         .cog_sigma0_rad = 0.05f,
         .gps_test_imu = 1u,
         .imu_acc_sigma_mps2 = 0.3f,
+        .coast_acc_sigma_mps2 = 0.15f,
         .gps_pos_white_m = 0.0f, /* receiver model off: the reported accuracies are R */
         .gps_alt_white_m = 0.0f,
     };
@@ -106,8 +107,9 @@ MCA_COLD mca_status_t mca_nav_config_check(const mca_nav_config_t *c)
         offsetof(mca_nav_config_t, gps_alt_sigma_m),   offsetof(mca_nav_config_t, gps_vel_sigma_mps),
         offsetof(mca_nav_config_t, mag_yaw_sigma_rad), offsetof(mca_nav_config_t, cog_min_speed_mps),
         offsetof(mca_nav_config_t, cog_sigma0_rad),    offsetof(mca_nav_config_t, imu_acc_sigma_mps2),
+        offsetof(mca_nav_config_t, coast_acc_sigma_mps2),
         offsetof(mca_nav_config_t, gps_pos_white_m),   offsetof(mca_nav_config_t, gps_alt_white_m)};
-    const uint32_t nonneg = 0x1u | 0x8u | 0x10u | 0x80u | 0x100u | 0x8000u | 0x20000u | 0x40000u | 0x80000u;
+    const uint32_t nonneg = 0x1u | 0x8u | 0x10u | 0x80u | 0x100u | 0x8000u | 0x20000u | 0x40000u | 0x80000u | 0x100000u;
     if (c->comp_mode > MCA_COMP_VELDIFF || c->yaw_source > MCA_YAW_COG || c->cs_lag_s > hist_s ||
         !mca_fields_ok(c, off, sizeof off / sizeof off[0], nonneg) || c->nogps_centripetal > 1u ||
         !isfinite(c->mag_declination_rad) || c->gps_test_imu > 1u) {
@@ -419,9 +421,11 @@ MCA_NOINLINE static mca_status_t cs_predict(mca_nav_t *nav, uint64_t t_fix, floa
         const float *pa = nav->att.p;
         const float g2 = nav->g_mps2 * nav->g_mps2;
         const float s2 = nav->cfg.imu_acc_sigma_mps2 * nav->cfg.imu_acc_sigma_mps2;
+        const float c2 = nav->cfg.coast_acc_sigma_mps2 * nav->cfg.coast_acc_sigma_mps2;
         /* tilt error: g d theta horizontally; yaw error turns the mean horizontal acceleration */
         const float ah2 = (inc[0].dv_mps * inc[0].dv_mps + inc[1].dv_mps * inc[1].dv_mps) / (t * t);
         const float var_h = s2 + g2 * (pa[0] + pa[7]) + ah2 * pa[14];
+        const float coast_h = c2 + g2 * (pa[0] + pa[7]) + ah2 * pa[14];
         /* an axis leaving a row out with coasting set (ALGORITHMS.md 2) keeps its aid once yaw was
          * observed: the staleness is in var_h (P_att[2][2]); without the IMU it would coast on its
          * constant acceleration, or test its rows against its own lagging prediction */
@@ -430,9 +434,10 @@ MCA_NOINLINE static mca_status_t cs_predict(mca_nav_t *nav, uint64_t t_fix, floa
         const int yaw_ok = !yaw_unobserved(nav) || (rows_out && nav->have_yaw_obs != 0u);
         /* the increments of finite history entries are finite; a variance that overflowed
          * (P_att huge) leaves the fix with the CS filter's own test rather than refusing it */
-        const int aid_h = yaw_ok && isfinite(var_h);
+        const int aid_h = yaw_ok && isfinite(var_h + coast_h);
         for (size_t i = 0; i < 3u; ++i) {
             inc[i].acc_var_m2ps4 = i < 2u ? var_h : s2;
+            inc[i].coast_var_m2ps4 = i < 2u ? coast_h : c2;
             use[i] = (i == 2u || aid_h) ? &inc[i] : NULL;
         }
     }

@@ -173,14 +173,18 @@ class Cs3:
     def predict(self, t_s: float) -> None:
         check(lib.mca_cs3_predict(self._cs, t_s), f"mca_cs3_predict(t_s={t_s!r})")
 
-    def predict_aided(self, t_s: float, dp_m: Any, dv_mps: Any, acc_var_m2ps4: Any) -> dict[str, np.ndarray]:
+    def predict_aided(
+        self, t_s: float, dp_m: Any, dv_mps: Any, acc_var_m2ps4: Any, coast_var_m2ps4: Any = None
+    ) -> dict[str, np.ndarray]:
         """Predict with the IMU increments per axis (``mca_cs3_predict_aided``, docs/ALGORITHMS.md 2);
-        NaN in ``acc_var`` leaves that axis unaided. Returns the test priors ``y`` (3 x 2) and ``S``
-        (3 x 2 x 2), NaN on unaided axes; the next :meth:`update` tests against them."""
+        NaN in ``acc_var`` leaves that axis unaided. ``coast_var``: the part of ``acc_var`` a coast
+        accumulates (None: all of it). Returns the test priors ``y`` (3 x 2) and ``S`` (3 x 2 x 2),
+        NaN on unaided axes; the next :meth:`update` tests against them."""
         dp, dv, qa = (np.asarray(a, np.float64).reshape(3) for a in (dp_m, dv_mps, acc_var_m2ps4))
+        qc = qa if coast_var_m2ps4 is None else np.asarray(coast_var_m2ps4, np.float64).reshape(3)
         incs = [
-            ffi.new("mca_cs_inc_t *", {"dp_m": p, "dv_mps": v, "acc_var_m2ps4": q})
-            for p, v, q in zip(dp, dv, qa, strict=True)
+            ffi.new("mca_cs_inc_t *", {"dp_m": p, "dv_mps": v, "acc_var_m2ps4": q, "coast_var_m2ps4": c})
+            for p, v, q, c in zip(dp, dv, qa, qc, strict=True)
         ]
         ptrs = ffi.new("mca_cs_inc_t *[3]", [incs[i] if np.isfinite(qa[i]) else ffi.NULL for i in range(3)])
         check(lib.mca_cs3_predict_aided(self._cs, t_s, ptrs), f"mca_cs3_predict_aided(t_s={t_s!r})")

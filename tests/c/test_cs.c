@@ -110,6 +110,7 @@ static void test_shared_ne_update_same_bits(void)
             inc[i].dp_m = dp[i];
             inc[i].dv_mps = dv[i];
             inc[i].acc_var_m2ps4 = 0.09f;
+            inc[i].coast_var_m2ps4 = 0.09f;
             use[i] = (k % 3 != 0) ? &inc[i] : NULL; /* aided two fixes in three */
         }
         CHECK_EQ_INT(mca_cs3_predict_aided(&a, t, use), MCA_OK);
@@ -157,7 +158,7 @@ static void test_coasting_predict(void)
     CHECK_EQ_INT(mca_cs_axis_init(&ax, &h, 10.0f, 5.0f), MCA_OK);
     ax.x[2] = 2.0f; /* an acceleration the coast must not use */
     plain = ax;
-    const mca_cs_inc_t inc = {0.03f, 0.2f, 0.09f};
+    const mca_cs_inc_t inc = {0.03f, 0.2f, 0.09f, 0.04f}; /* the coast accumulates 0.04 of the 0.09 */
     const float t = 0.2f;
     /* out clear: the ordinary predict */
     CHECK_EQ_INT(mca_cs_axis_predict_aided(&ax, t, &inc), MCA_OK);
@@ -178,8 +179,23 @@ static void test_coasting_predict(void)
     CHECK_EQ_INT(mca_cs_axis_predict_aided(&plain, t, &inc), MCA_OK);
     CHECK_CLOSE(plain.x[1], before.x[1] + t * before.x[2], 1e-6);
     /* P: without the a coupling, with the IMU error; the p-a covariance is not moved by a */
-    CHECK(ax.p[6] >= before.p[6] + 0.09f * t * t - 1e-7f);
+    CHECK(ax.p[6] >= before.p[6] + 0.04f * t * t - 1e-7f);
     CHECK(ax.p[6] < plain.p[6]); /* P_aa t^2 is larger than qa t^2 here */
+    /* the coast accumulates the persisting variance; the test prior takes the whole one */
+    mca_cs_axis_t nocv = before;
+    nocv.aid.out = 1u;
+    const mca_cs_inc_t inc0 = {0.03f, 0.2f, 0.09f, 0.0f};
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&nocv, t, &inc0), MCA_OK);
+    CHECK_CLOSE(ax.p[6] - nocv.p[6], 0.04 * 0.2 * 0.2, 1e-6);
+    CHECK(ax.aid.s[3] == nocv.aid.s[3] && ax.aid.valid == 1u);
+    /* a bad coast variance: refused, nothing changes */
+    mca_cs_axis_t bad = before;
+    mca_cs_inc_t binc = inc;
+    binc.coast_var_m2ps4 = NAN;
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&bad, t, &binc), MCA_ERR_NONFINITE);
+    binc.coast_var_m2ps4 = -0.01f;
+    CHECK_EQ_INT(mca_cs_axis_predict_aided(&bad, t, &binc), MCA_ERR_BAD_ARG);
+    CHECK(memcmp(bad.x, before.x, sizeof bad.x) == 0 && memcmp(bad.p, before.p, sizeof bad.p) == 0);
     /* without increments: the ordinary predict */
     mca_cs_axis_t noinc = before, ref = before;
     noinc.aid.out = 1u;
@@ -211,7 +227,7 @@ static void test_coast_starts_when_the_velocity_is_out(void)
     CHECK_EQ_INT(mca_cs_config_check(&h), MCA_OK);
     mca_cs_axis_t ax;
     CHECK_EQ_INT(mca_cs_axis_init(&ax, &h, 0.0f, 5.0f), MCA_OK);
-    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f}; /* the IMU: no acceleration */
+    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f, 0.09f}; /* the IMU: no acceleration */
     const float t = 0.2f;
     float ws[MCA_CS_WS_LEN];
     mca_update_report_t rep;
@@ -264,7 +280,7 @@ static void test_coast_start_with_the_position_applied(void)
     fuzzy_rows_config(&h);
     mca_cs_axis_t ax;
     CHECK_EQ_INT(mca_cs_axis_init(&ax, &h, 0.0f, 5.0f), MCA_OK);
-    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f};
+    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f, 0.09f};
     const float t = 0.2f;
     float ws[MCA_CS_WS_LEN];
     mca_update_report_t rep;
@@ -302,7 +318,7 @@ static void test_ne_pair_leaves_the_partner_rows_out(void)
     fuzzy_rows_config(&h);
     mca_cs_config_default_v(&v);
     const float t = 0.2f;
-    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f}; /* the IMU: no acceleration */
+    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f, 0.09f}; /* the IMU: no acceleration */
     const mca_cs_inc_t *const incs[3] = {&inc, &inc, &inc};
     float ws[MCA_CS_WS_LEN];
     mca_update_report_t rep[3];
@@ -350,7 +366,7 @@ static void test_ne_pair_shares_the_rows_out_with_the_failing_ones(void)
     fuzzy_rows_config(&h);
     mca_cs_config_default_v(&v);
     const float t = 0.2f;
-    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f};
+    const mca_cs_inc_t inc = {0.0f, 0.0f, 0.09f, 0.09f};
     const mca_cs_inc_t *const incs[3] = {&inc, &inc, &inc};
     float ws[MCA_CS_WS_LEN];
     const float r_pos[3] = {1.0f, 1.0f, 4.0f}, r_vel[3] = {0.01f, 0.01f, 0.04f};

@@ -452,10 +452,10 @@ def _fuzzy_rows_track(seed: int, scale: float = 1.0) -> tuple[np.ndarray, ...]:
 def test_fuzzy_rows_and_coasting_match_golden() -> None:
     """A CS axis with fuzzy rows (fuzzy_reject 2) and coasting (ALGORITHMS.md 2 and 5), C against
     the golden model composed of its independent pieces (aided_prior, robust_update with the test
-    innovation, predict_coasting after an update that left the velocity row out or was rejected,
-    the coast started from the aided prior after a rejection), step by step through a position
-    fault, a fault of both and a velocity fault: the same decisions on every fix, and x, P within
-    float32 rounding of the golden ones.
+    innovation, predict_coasting with the coast's own IMU error variance after an update that
+    left the velocity row out or was rejected, the coast started from the aided prior), step by
+    step through a position fault, a fault of both and a velocity fault: the same decisions on
+    every fix, and x, P within float32 rounding of the golden ones.
 
     It also checks what the pieces are for: the position fault is ridden out on the velocity
     (position left out, velocity applied, no coasting: the CS model stays a GPS maneuver
@@ -464,7 +464,7 @@ def test_fuzzy_rows_and_coasting_match_golden() -> None:
     from mcahrs.golden.robust import RobustConfig, RobustState, robust_update
 
     zp, zv, dp, dv, p_true, v_true = _fuzzy_rows_track(5)
-    t, rp, rv, qa = 0.2, 1.0, 0.01, 0.09
+    t, rp, rv, qa, qc = 0.2, 1.0, 0.01, 0.09, 0.0225  # the test's IMU error variance, the coast's
     robust = {"mode": core.lib.MCA_ROBUST_FUZZY, "fuzzy_reject": 2, "reject_reset_n": 100, "row_reset_n": 0}
     cfg = core.cs_config(False, coast=1, robust=robust)
     c = core.Cs3(cfg, core.cs_config(True), [0.0, 0.0, 0.0], [8.0, 0.0, 0.0])
@@ -480,10 +480,10 @@ def test_fuzzy_rows_and_coasting_match_golden() -> None:
     herr = np.zeros(len(zp))
     nan3 = np.array([qa, np.nan, np.nan])
     for k in range(len(zp)):
-        c.predict_aided(t, [dp[k], 0.0, 0.0], [dv[k], 0.0, 0.0], nan3)
+        c.predict_aided(t, [dp[k], 0.0, 0.0], [dv[k], 0.0, 0.0], nan3, [qc, np.nan, np.nan])
         y, s = g.aided_prior(t, dp[k], dv[k], qa)  # from the posterior, before the predict
         if g_out:
-            g.predict_coasting(t, dp[k], dv[k], qa)
+            g.predict_coasting(t, dp[k], dv[k], qc)
         else:
             g.predict(t)
         rep = c.update([zp[k], 0.0, 0.0], [zv[k], 0.0, 0.0], [rp, 4.0, 4.0], [rv, 1.0, 1.0], [3, 1, 1])

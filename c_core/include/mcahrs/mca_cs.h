@@ -67,7 +67,10 @@ typedef struct {
 typedef struct {
     float dp_m;          /**< position increment minus the initial velocity's share, int int a dt dt */
     float dv_mps;        /**< velocity increment, int a dt */
-    float acc_var_m2ps4; /**< variance of the IMU acceleration error over the interval, >= 0 */
+    float acc_var_m2ps4; /**< variance of the IMU acceleration error over the interval (the test
+                              prior's: with the transients of a maneuver onset), >= 0 */
+    float coast_var_m2ps4; /**< the part of it that persists interval after interval, which a
+                                coast accumulates (ALGORITHMS.md 2, coasting), >= 0 */
 } mca_cs_inc_t;
 
 /** One axis. Owns its state; scratch is passed in by the caller (see mca_cs3_t). */

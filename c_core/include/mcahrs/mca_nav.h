@@ -71,6 +71,8 @@ typedef struct {
     float cog_sigma0_rad;       /**< base course-over-ground std */
     float imu_acc_sigma_mps2;   /**< IMU acceleration error std of the IMU-aided prediction (bias, vibration,
                                      ring approximation; tilt and yaw errors are added), >= 0 */
+    float coast_acc_sigma_mps2; /**< the part of it that persists over a coast (its bias-like part, without
+                                     a maneuver onset's transients), >= 0 (ALGORITHMS.md 2, coasting) */
     float gps_pos_white_m;      /**< receiver model (ALGORITHMS.md 8, GPS step 4): > 0, the white part of
                                      the horizontal position error, R = min(h_acc, this)^2, the rest
                                      in the CS GPS-error state (cs_h sigma_p_m, tau_p_s); 0: R = h_acc^2 */

@@ -224,6 +224,9 @@ class NavConfig:
     cog_sigma0_rad: float = 0.05
     gps_test_imu: int = 1  # robust modes test the CS update against the IMU-aided prediction
     imu_acc_sigma_mps2: float = 0.3  # IMU acceleration error std of that prediction
+    # the part of it that persists over a coast (ALGORITHMS.md 2, coasting): the C CS axes' coast
+    # variance; this model does not coast (no robust modes), it carries the configuration
+    coast_acc_sigma_mps2: float = 0.15
     # Receiver model (ALGORITHMS.md 8, GPS step 4): > 0, the white part of the position error, R =
     # min(accuracy, white)^2; the rest is the CS GPS-error state's (sigma_p_m, tau_p_s). 0: R = accuracy^2.
     gps_pos_white_m: float = 0.0
@@ -281,7 +284,14 @@ class NavConfig:
             raise BadConfigError(f"yaw_source must be 0, 1 or 2, got {self.yaw_source!r}")
         if self.nogps_centripetal not in (0, 1):  # True/False compare equal to 1/0
             raise BadConfigError(f"nogps_centripetal must be 0 or 1, got {self.nogps_centripetal!r}")
-        nonneg = ("cs_lag_s", "nogps_rp_var_rad2", "gravity_mps2", "gps_pos_white_m", "gps_alt_white_m")
+        nonneg = (
+            "cs_lag_s",
+            "nogps_rp_var_rad2",
+            "gravity_mps2",
+            "gps_pos_white_m",
+            "gps_alt_white_m",
+            "coast_acc_sigma_mps2",
+        )
         for f in fields(self):
             if f.name in ("cs_h", "cs_v", "att", "comp_mode", "yaw_source", "nogps_centripetal"):
                 continue
