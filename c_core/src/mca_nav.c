@@ -701,8 +701,8 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
         r_acc = (nav->cs.axis[0].p[12] + nav->cs.axis[1].p[12]) / (2.0f * g2);
         e = hist_find(nav, (int64_t)fix->t_us - (int64_t)us(nav->cfg.cs_lag_s));
     } else if (nav->cfg.comp_mode == MCA_COMP_VELDIFF) {
-        const float dtf = span_s(nav->t_prevfix_us, fix->t_us);
-        if (fix->t_us - nav->t_prevfix_us > us(nav->cfg.gps_timeout_s)) {
+        const float dtf = span_s(nav->t_lastfix_us, fix->t_us);
+        if (fix->t_us - nav->t_lastfix_us > us(nav->cfg.gps_timeout_s)) {
             observe = 0;
             if (nav->aligned) {
                 gravity_skip(nav); /* no usable previous fix */
@@ -796,7 +796,6 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
     }
     nav->have_fix = 1u;
     nav->t_lastfix_us = fix->t_us;
-    nav->t_prevfix_us = fix->t_us;
     memcpy(nav->vel_prev, fv.vel_ned_mps, sizeof(nav->vel_prev));
     nav->prev_vel_mask = fv.vel_mask;
     return MCA_OK;

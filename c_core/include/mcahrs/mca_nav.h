@@ -133,8 +133,7 @@ typedef struct {
     uint8_t init_still;      /**< every sample of the window was still */
     float g_mps2;
     float acc_comp_n[3];     /**< compensation acceleration of the last fix */
-    float vel_prev[3];       /**< velocity of the previous fix (differencing) */
-    uint64_t t_prevfix_us;
+    float vel_prev[3];       /**< velocity of the last fix (at t_lastfix_us; differencing) */
     uint8_t prev_vel_mask;   /**< bit i: vel_prev[i] valid */
     uint8_t have_imu;
     uint8_t aligned;
