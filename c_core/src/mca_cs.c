@@ -45,6 +45,22 @@ MCA_COLD mca_status_t mca_cs_config_check(const mca_cs_config_t *cfg)
     return MCA_OK;
 }
 
+/* mca_cs_axis_init past its checks */
+static void axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m, float v0_mps)
+{
+    mca_zero_bytes(ax, sizeof(*ax));
+    mca_copy_bytes(&ax->cfg, cfg, sizeof(ax->cfg));
+    ax->x[0] = p0_m;
+    ax->x[1] = v0_mps;
+    ax->p[0] = cfg->p0_var_m2;
+    ax->p[6] = cfg->v0_var_m2ps2;
+    ax->p[12] = cfg->a0_var_m2ps4;
+    ax->p[18] = cfg->sigma_p_m * cfg->sigma_p_m;
+    ax->p[24] = cfg->sigma_v_mps * cfg->sigma_v_mps;
+    ax->s2_m2ps4 = cfg->sigma_a0_mps2 * cfg->sigma_a0_mps2;
+    mca_robust_state_init(&ax->rs);
+}
+
 MCA_COLD mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m, float v0_mps)
 {
     if (ax == NULL || cfg == NULL) {
@@ -57,17 +73,7 @@ MCA_COLD mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t 
     if (!isfinite(p0_m) || !isfinite(v0_mps)) {
         return MCA_ERR_NONFINITE;
     }
-    mca_zero_bytes(ax, sizeof(*ax));
-    mca_copy_bytes(&ax->cfg, cfg, sizeof(ax->cfg));
-    ax->x[0] = p0_m;
-    ax->x[1] = v0_mps;
-    ax->p[0] = cfg->p0_var_m2;
-    ax->p[6] = cfg->v0_var_m2ps2;
-    ax->p[12] = cfg->a0_var_m2ps4;
-    ax->p[18] = cfg->sigma_p_m * cfg->sigma_p_m;
-    ax->p[24] = cfg->sigma_v_mps * cfg->sigma_v_mps;
-    ax->s2_m2ps4 = cfg->sigma_a0_mps2 * cfg->sigma_a0_mps2;
-    mca_robust_state_init(&ax->rs);
+    axis_init(ax, cfg, p0_m, v0_mps);
     return MCA_OK;
 }
 
@@ -478,12 +484,18 @@ MCA_COLD mca_status_t mca_cs3_init(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, 
         (vel_ned_mps != NULL && !mca_all_finite(vel_ned_mps, 3u))) {
         return MCA_ERR_NONFINITE;
     }
+    mca_cs3_init_nocheck(cs, cfg_h, cfg_v, pos_ned_m, vel_ned_mps);
+    return MCA_OK;
+}
+
+void mca_cs3_init_nocheck(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
+                          const float pos_ned_m[3], const float vel_ned_mps[3])
+{
     for (size_t i = 0; i < 3u; ++i) {
         const float p0 = pos_ned_m != NULL ? pos_ned_m[i] : 0.0f;
         const float v0 = vel_ned_mps != NULL ? vel_ned_mps[i] : 0.0f;
-        (void)mca_cs_axis_init(&cs->axis[i], i < 2u ? cfg_h : cfg_v, p0, v0);
+        axis_init(&cs->axis[i], i < 2u ? cfg_h : cfg_v, p0, v0);
     }
-    return MCA_OK;
 }
 
 mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t, const mca_cs_inc_t *const inc[3])

@@ -14,4 +14,9 @@ mca_status_t mca_cs3_update_nocheck(mca_cs3_t *cs, const float pos[3], const flo
                                     const float r_vel[3], const uint8_t mask[3], float *ws,
                                     mca_update_report_t rep[3]);
 
+/* mca_cs3_init with every pointer but pos_ned_m / vel_ned_mps non-NULL, both configurations
+ * valid (mca_cs_config_check) and the given position and velocity finite */
+void mca_cs3_init_nocheck(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
+                          const float pos_ned_m[3], const float vel_ned_mps[3]);
+
 #endif /* MCA_CS_NOCHECK_H */

@@ -747,7 +747,7 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
  * update writes (a numerically failed one leaves the axis, and so its T, unchanged). */
 static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
 {
-    (void)mca_cs3_init(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel);
+    mca_cs3_init_nocheck(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel); /* checked at init and entry */
     for (size_t i = 0; i < 3u; ++i) {
         nav->acc_comp_n[i] = 0.0f;
         nav->cs.axis[i].rs.t_stat = NAN;
