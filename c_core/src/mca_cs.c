@@ -512,6 +512,12 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t, const mca_cs_inc_t *c
             return st;
         }
     }
+    mca_cs3_predict_aided_nocheck(cs, t, inc);
+    return MCA_OK;
+}
+
+void mca_cs3_predict_aided_nocheck(mca_cs3_t *cs, float t, const mca_cs_inc_t *const inc[3])
+{
     /* N and E share the horizontal configuration: an axis whose model equals the previous
      * axis' reuses its Phi and Q1 (3 expm1 calls and the Singer block saved, the same bits as
      * its own; the maneuver variance scales Q1 in axis_predict_with). */
@@ -526,7 +532,6 @@ mca_status_t mca_cs3_predict_aided(mca_cs3_t *cs, float t, const mca_cs_inc_t *c
         axis_predict_with(ax, t, mca_cs_maneuver_var(&ax->cfg, ax->x[2]) /* eq. 16: abar = a_hat */, phi, q1,
                           inc != NULL ? inc[i] : NULL);
     }
-    return MCA_OK;
 }
 
 mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t)

@@ -19,4 +19,8 @@ mca_status_t mca_cs3_update_nocheck(mca_cs3_t *cs, const float pos[3], const flo
 void mca_cs3_init_nocheck(mca_cs3_t *cs, const mca_cs_config_t *cfg_h, const mca_cs_config_t *cfg_v,
                           const float pos_ned_m[3], const float vel_ned_mps[3]);
 
+/* mca_cs3_predict_aided with cs non-NULL, 0 < t <= dt_max_s of every axis' configuration, and
+ * each increment given finite with variances >= 0 */
+void mca_cs3_predict_aided_nocheck(mca_cs3_t *cs, float t, const mca_cs_inc_t *const inc[3]);
+
 #endif /* MCA_CS_NOCHECK_H */

@@ -413,7 +413,7 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
 
 /* CS predict over t to the fix at t_fix, IMU-aided on the axes where that is possible
  * (ALGORITHMS.md 8, GPS step 3). */
-MCA_NOINLINE static mca_status_t cs_predict(mca_nav_t *nav, uint64_t t_fix, float t)
+MCA_NOINLINE static void cs_predict(mca_nav_t *nav, uint64_t t_fix, float t)
 {
     mca_cs_inc_t inc[3];
     const mca_cs_inc_t *use[3] = {NULL, NULL, NULL};
@@ -441,7 +441,9 @@ MCA_NOINLINE static mca_status_t cs_predict(mca_nav_t *nav, uint64_t t_fix, floa
             use[i] = (i == 2u || aid_h) ? &inc[i] : NULL;
         }
     }
-    return mca_cs3_predict_aided(&nav->cs, t, use);
+    /* 0 < t <= dt_max (mca_nav_gps); the increments of finite history entries are finite and
+     * the variances used finite (aid_h) and >= the configured ones */
+    mca_cs3_predict_aided_nocheck(&nav->cs, t, use);
 }
 
 static int gps_lost(const mca_nav_t *nav, uint64_t t)
@@ -636,14 +638,11 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
         ((has_vne || has_vd) && !mca_positive(rv[0]))) { /* N and E always take their position; */
         return MCA_ERR_BAD_ARG;                             /* rv is one variance on every axis */
     }
-    mca_status_t st = cs_predict(nav, fix->t_us, t);
-    if (st != MCA_OK) {
-        return st;
-    }
+    cs_predict(nav, fix->t_us, t);
     /* No report (T is read from the axis memory; N and E can then share one covariance
      * update). An axis can fail only numerically, and then it is left unchanged
      * (mca_cs_axis_update is atomic) and keeps its T. */
-    st = mca_cs3_update_nocheck(&nav->cs, ned, fv->vel_ned_mps, rp, rv, mask, nav->ws, NULL);
+    const mca_status_t st = mca_cs3_update_nocheck(&nav->cs, ned, fv->vel_ned_mps, rp, rv, mask, nav->ws, NULL);
     for (size_t i = 0; i < 3u; ++i) {
         if (mask[i] != 0u) {
             nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat; /* NaN until an update succeeds */
