@@ -47,6 +47,12 @@ MCA_COLD mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, 
     if (!mca_all_finite(q_nb, 4u) || !mca_all_finite(bias, 3u)) {
         return MCA_ERR_NONFINITE;
     }
+    mca_att_init_nocheck(att, cfg, q_nb, bias);
+    return MCA_OK;
+}
+
+MCA_COLD void mca_att_init_nocheck(mca_att_t *att, const mca_att_config_t *cfg, const float q_nb[4], const float bias[3])
+{
     mca_zero_bytes(att, sizeof(*att));
     att->cfg = *cfg;
     att->sin_max_tilt = mca_sinf(cfg->max_tilt_obs_rad);
@@ -60,7 +66,6 @@ MCA_COLD mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, 
     att->p[28] = cfg->bias0_var_rps2;
     att->p[35] = cfg->bias0_var_rps2;
     mca_robust_state_init(&att->rs);
-    return MCA_OK;
 }
 
 /* out = A M, A = I + [[0, r2, -r1], [-r2, 0, r0], [r1, -r0, 0]] = I - [r x] (r = w dt, the error

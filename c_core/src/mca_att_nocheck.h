@@ -8,6 +8,9 @@
 
 #include "mcahrs/mca_att.h"
 
+/* mca_att_init with every pointer non-NULL, cfg valid (mca_att_config_check), q_nb and bias finite */
+void mca_att_init_nocheck(mca_att_t *att, const mca_att_config_t *cfg, const float q_nb[4], const float bias[3]);
+
 /* mca_att_propagate with gyro finite and dt finite, > 0 */
 void mca_att_propagate_nocheck(mca_att_t *att, const float gyro_b_rps[3], float dt_s);
 

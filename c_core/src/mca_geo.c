@@ -1,5 +1,6 @@
 /* Geodetic to NED and normal gravity (docs/ALGORITHMS.md 6). See mca_geo.h. */
 #include "mcahrs/mca_geo.h"
+#include "mca_geo_nocheck.h"
 #include "mca_cold.h"
 
 #include <math.h>
@@ -51,13 +52,18 @@ MCA_COLD mca_status_t mca_geo_set_home(mca_geo_home_t *home, int32_t lat_e7, int
     if (st != MCA_OK) {
         return st;
     }
+    mca_geo_set_home_nocheck(home, lat_e7, lon_e7, alt_mm);
+    return MCA_OK;
+}
+
+MCA_COLD void mca_geo_set_home_nocheck(mca_geo_home_t *home, int32_t lat_e7, int32_t lon_e7, int32_t alt_mm)
+{
     home->lat_e7 = lat_e7;
     home->lon_e7 = lon_e7;
     home->alt_mm = alt_mm;
     lat_sincos(lat_e7, &home->sin_lat, &home->cos_lat);
     home->root = sqrtf(1.0f - WGS84_E2 * home->sin_lat * home->sin_lat);
     home->n_m = WGS84_A / home->root;
-    return MCA_OK;
 }
 
 mca_status_t mca_geo_to_ned(const mca_geo_home_t *home, int32_t lat_e7, int32_t lon_e7, int32_t alt_mm,
@@ -70,6 +76,13 @@ mca_status_t mca_geo_to_ned(const mca_geo_home_t *home, int32_t lat_e7, int32_t 
     if (st != MCA_OK) {
         return st;
     }
+    mca_geo_to_ned_nocheck(home, lat_e7, lon_e7, alt_mm, ned_m);
+    return MCA_OK;
+}
+
+void mca_geo_to_ned_nocheck(const mca_geo_home_t *home, int32_t lat_e7, int32_t lon_e7, int32_t alt_mm,
+                            float ned_m[3])
+{
     /* integer differences; longitude wrapped across the antimeridian */
     const int64_t dlat_e7 = (int64_t)lat_e7 - (int64_t)home->lat_e7;
     int64_t dlon_e7 = (int64_t)lon_e7 - (int64_t)home->lon_e7;
@@ -100,7 +113,6 @@ mca_status_t mca_geo_to_ned(const mca_geo_home_t *home, int32_t lat_e7, int32_t 
     ned_m[0] = nh1 * (mca_sinf(dphi) + 2.0f * s0 * c1 * sdl2 * sdl2) - c0 * ecc;
     const float up = dn + dh - nh1 * (2.0f * sdp2 * sdp2 + 2.0f * c0 * c1 * sdl2 * sdl2) - s0 * ecc;
     ned_m[2] = -up;
-    return MCA_OK;
 }
 
 float mca_geo_gravity(float lat, float h)

@@ -4,6 +4,7 @@
 #include "mca_cold.h"
 #include "mca_cs_nocheck.h"
 #include "mca_defaults.h"
+#include "mca_geo_nocheck.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -151,7 +152,7 @@ static void align(mca_nav_t *nav, const float f_mean[3], const float bias[3], fl
     mca_quat_from_euler(q, eul);
     mca_att_config_t acfg = nav->cfg.att;
     acfg.att0_var_rad2 = att_var_rad2;
-    (void)mca_att_init(&nav->att, &acfg, q, bias); /* config checked at init */
+    mca_att_init_nocheck(&nav->att, &acfg, q, bias); /* config checked at init; means of finite samples */
     nav->att.cfg.att0_var_rad2 = nav->cfg.att.att0_var_rad2;
     nav->aligned = 1u;
     nav->t_lastgrav_us = nav->t_imu_us;
@@ -772,7 +773,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
     }
     const int has_alt = fv.has_alt != 0u;
     if (!nav->home_set) {
-        (void)mca_geo_set_home(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
+        mca_geo_set_home_nocheck(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
         nav->home_set = 1u;
         if (!(nav->cfg.gravity_mps2 > 0.0f)) {
             const float lat = (float)fix->lat_e7 * 1.74532925199433e-9f;
@@ -781,7 +782,8 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
         cs_start(nav, NULL, fv.vel_ned_mps);
     } else {
         float ned[3];
-        (void)mca_geo_to_ned(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : nav->home.alt_mm, ned);
+        /* the fix was range-checked by mca_gps_fix_read, the home altitude by mca_geo_set_home */
+        mca_geo_to_ned_nocheck(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : nav->home.alt_mm, ned);
         const float t = span_s(nav->t_lastfix_us, fix->t_us);
         if (t > nav->cfg.cs_h.dt_max_s || t > nav->cfg.cs_v.dt_max_s) {
             cs_start(nav, ned, fv.vel_ned_mps);
