@@ -240,9 +240,10 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
     if (rep == NULL && (!robust || att->cfg.robust.mode == (uint8_t)MCA_ROBUST_PLAIN)) {
         st = att_update_plain(att, h, m, nu, r, dx, ws, robust ? &att->rs : NULL);
     } else {
-        /* the _tested entry with no test directly: mca_kf_update is a wrapper frame on this path */
-        st = mca_kf_update_tested(dx, att->p, MCA_ATT_NX, h, nu, rm, m, robust ? &att->cfg.robust : NULL,
-                                  robust ? &att->rs : NULL, NULL, NULL, ws, MCA_ATT_WS_LEN, rep);
+        /* the tested update past its checks: the robust inputs are checked where they enter (init,
+         * mca_att_update_gravity), the rest is this filter's own */
+        st = mca_kf_update_tested_nocheck(dx, att->p, MCA_ATT_NX, h, nu, rm, m, robust ? &att->cfg.robust : NULL,
+                                          robust ? &att->rs : NULL, NULL, NULL, ws, rep);
     }
     if (st == MCA_OK) {
         if (level_only) {
@@ -331,6 +332,10 @@ mca_status_t mca_att_update_gravity(mca_att_t *att, const float f[3], const floa
     }
     if (!(g > 0.0f) || r_acc < 0.0f) {
         return MCA_ERR_BAD_ARG;
+    }
+    const mca_status_t st = mca_robust_inputs_check(&att->cfg.robust, &att->rs);
+    if (st != MCA_OK) {
+        return st;
     }
     return gravity_update(att, f, acc_n, q_d, g, r_acc, ws, rep);
 }

@@ -436,8 +436,8 @@ MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float
     const mca_status_t su =
         gains != NULL ? mca_kf_update_plain(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->rs, aided ? nu_t : NULL,
                                             aided ? c_t : NULL, ws, MCA_KF_WS_LEN(MCA_CS_NX, MCA_CS_NZ), gains)
-                      : mca_kf_update_tested(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs,
-                                             aided ? nu_t : NULL, aided ? c_t : NULL, ws, MCA_CS_WS_LEN, rep);
+                      : mca_kf_update_tested_nocheck(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs,
+                                                     aided ? nu_t : NULL, aided ? c_t : NULL, ws, rep);
     if (su == MCA_OK) {
         ax->aid.valid = 0u;
         /* coasting (ALGORITHMS.md 2) while the velocity row is out or the update was rejected; a
@@ -460,7 +460,10 @@ mca_status_t mca_cs_axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r
     if (ax == NULL || ws == NULL) {
         return MCA_ERR_NULL;
     }
-    const mca_status_t st = check_update(z_p, z_v, r_p, r_v, mask);
+    mca_status_t st = check_update(z_p, z_v, r_p, r_v, mask);
+    if (st == MCA_OK) {
+        st = mca_robust_inputs_check(&ax->cfg.robust, &ax->rs);
+    }
     if (st != MCA_OK) {
         return st;
     }
@@ -652,7 +655,10 @@ mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3
     }
     for (size_t i = 0; i < 3u; ++i) {
         if (mask[i] != 0u) {
-            const mca_status_t st = check_update(pos[i], vel[i], r_pos[i], r_vel[i], mask[i]);
+            mca_status_t st = check_update(pos[i], vel[i], r_pos[i], r_vel[i], mask[i]);
+            if (st == MCA_OK) {
+                st = mca_robust_inputs_check(&cs->axis[i].cfg.robust, &cs->axis[i].rs);
+            }
             if (st != MCA_OK) {
                 return st;
             }

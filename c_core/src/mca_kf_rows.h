@@ -28,4 +28,19 @@ void mca_kf_plain_memory(mca_robust_state_t *rs, size_t m, float t_stat);
 unsigned mca_kf_fuzzy_failed(const mca_robust_config_t *rc, const mca_robust_state_t *rs, const float *nu_t,
                              const float *c_t, size_t m, float *ws);
 
+/* The robust inputs an update of rc's mode reads: MCA_OK for plain (rc NULL or mode plain);
+ * else MCA_ERR_BAD_CONFIG for a configuration mca_robust_config_check refuses, and for AKF and
+ * fuzzy MCA_ERR_NULL without a memory, MCA_ERR_BAD_ARG for a memory that mca_robust_state_init
+ * and the updates cannot have produced. The public updates check it; the filters' own paths
+ * check it where their configuration and memory enter (init, their public updates). */
+mca_status_t mca_robust_inputs_check(const mca_robust_config_t *rc, const mca_robust_state_t *rs);
+
+/* mca_kf_update_tested past its pointer, size and robust-input checks (ws at least
+ * MCA_KF_WS_LEN(n, m) floats); the finite checks of z, R, H and the test stay: they are what
+ * refuses an overflowed covariance. */
+mca_status_t mca_kf_update_tested_nocheck(float *x, float *p, size_t n, const float *h, const float *z,
+                                          const float *r, size_t m, const mca_robust_config_t *rc,
+                                          mca_robust_state_t *rs, const float *nu_t, const float *c_t, float *ws,
+                                          mca_update_report_t *rep);
+
 #endif /* MCA_KF_ROWS_H */

@@ -931,29 +931,17 @@ MCA_NOINLINE static mca_status_t update_general(float *x, float *p, size_t n, co
                                                 mca_robust_state_t *rs, const float *nu_t, const float *c_t,
                                                 float *ws, mca_update_report_t *rep);
 
-mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, const float *z,
-                                  const float *r, size_t m, const mca_robust_config_t *rc,
-                                  mca_robust_state_t *rs, const float *nu_t, const float *c_t,
-                                  float *ws, size_t ws_len, mca_update_report_t *rep)
+mca_status_t mca_robust_inputs_check(const mca_robust_config_t *rc, const mca_robust_state_t *rs)
 {
-    const int tested = nu_t != NULL;
-    if (x == NULL || p == NULL || h == NULL || z == NULL || r == NULL || ws == NULL || (tested && c_t == NULL)) {
-        return MCA_ERR_NULL;
-    }
-    if (m == 0u || m > MCA_MEAS_MAX || n == 0u || ws_len < (size_t)MCA_KF_WS_LEN(n, m)) {
-        return MCA_ERR_BAD_ARG;
-    }
     /* Plain mode reads no other field of rc: the range check is for the modes that do (an
      * unknown mode is not plain, so it is refused there). */
-    mca_robust_mode_t mode = MCA_ROBUST_PLAIN;
-    if (rc != NULL && rc->mode != (uint8_t)MCA_ROBUST_PLAIN) {
-        if (mca_robust_config_check(rc) != MCA_OK) {
-            return MCA_ERR_BAD_CONFIG;
-        }
-        mode = (mca_robust_mode_t)rc->mode;
+    if (rc == NULL || rc->mode == (uint8_t)MCA_ROBUST_PLAIN) {
+        return MCA_OK;
     }
-    const int uses_memory = mode == MCA_ROBUST_AKF || mode == MCA_ROBUST_FUZZY;
-    if (uses_memory) {
+    if (mca_robust_config_check(rc) != MCA_OK) {
+        return MCA_ERR_BAD_CONFIG;
+    }
+    if (rc->mode == (uint8_t)MCA_ROBUST_AKF || rc->mode == (uint8_t)MCA_ROBUST_FUZZY) {
         if (rs == NULL) {
             return MCA_ERR_NULL;
         }
@@ -961,6 +949,34 @@ mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, 
             return MCA_ERR_BAD_ARG;
         }
     }
+    return MCA_OK;
+}
+
+mca_status_t mca_kf_update_tested(float *x, float *p, size_t n, const float *h, const float *z,
+                                  const float *r, size_t m, const mca_robust_config_t *rc,
+                                  mca_robust_state_t *rs, const float *nu_t, const float *c_t,
+                                  float *ws, size_t ws_len, mca_update_report_t *rep)
+{
+    if (x == NULL || p == NULL || h == NULL || z == NULL || r == NULL || ws == NULL || (nu_t != NULL && c_t == NULL)) {
+        return MCA_ERR_NULL;
+    }
+    if (m == 0u || m > MCA_MEAS_MAX || n == 0u || ws_len < (size_t)MCA_KF_WS_LEN(n, m)) {
+        return MCA_ERR_BAD_ARG;
+    }
+    const mca_status_t st = mca_robust_inputs_check(rc, rs);
+    if (st != MCA_OK) {
+        return st;
+    }
+    return mca_kf_update_tested_nocheck(x, p, n, h, z, r, m, rc, rs, nu_t, c_t, ws, rep);
+}
+
+mca_status_t mca_kf_update_tested_nocheck(float *x, float *p, size_t n, const float *h, const float *z,
+                                          const float *r, size_t m, const mca_robust_config_t *rc,
+                                          mca_robust_state_t *rs, const float *nu_t, const float *c_t, float *ws,
+                                          mca_update_report_t *rep)
+{
+    const int tested = nu_t != NULL;
+    const mca_robust_mode_t mode = rc != NULL ? (mca_robust_mode_t)rc->mode : MCA_ROBUST_PLAIN;
     /* Plain mode with a diagonal R needs neither nu nor C before the update: the rows give T.
      * They are formed only for a report (the general path). The row-by-row update checks its
      * inputs through what it computes: every entry of H and of R's diagonal reaches its row's s
