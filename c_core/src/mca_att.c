@@ -408,6 +408,12 @@ mca_status_t mca_att_align_yaw(mca_att_t *att, float psi_m, float r)
     if (!(r > 0.0f)) {
         return MCA_ERR_BAD_ARG;
     }
+    mca_att_align_yaw_nocheck(att, psi_m, r);
+    return MCA_OK;
+}
+
+void mca_att_align_yaw_nocheck(mca_att_t *att, float psi_m, float r)
+{
     float eul[3];
     mca_quat_to_euler_part(eul, att->q_nb, 3u); /* roll and pitch kept, yaw set */
     eul[2] = mca_wrap_pi(psi_m);
@@ -417,7 +423,6 @@ mca_status_t mca_att_align_yaw(mca_att_t *att, float psi_m, float r)
         att->p[i * MCA_ATT_NX + 2u] = 0.0f;
     }
     att->p[2u * MCA_ATT_NX + 2u] = r;
-    return MCA_OK;
 }
 
 mca_status_t mca_att_mag_heading(const mca_att_t *att, const float m[3], float decl, float *psi_m)
@@ -428,6 +433,11 @@ mca_status_t mca_att_mag_heading(const mca_att_t *att, const float m[3], float d
     if (!mca_all_finite(m, 3u) || !isfinite(decl)) {
         return MCA_ERR_NONFINITE;
     }
+    return mca_att_mag_heading_nocheck(att, m, decl, psi_m);
+}
+
+mca_status_t mca_att_mag_heading_nocheck(const mca_att_t *att, const float m[3], float decl, float *psi_m)
+{
     if (!(m[0] * m[0] + m[1] * m[1] + m[2] * m[2] > 0.0f)) {
         return MCA_ERR_BAD_ARG;
     }

@@ -34,4 +34,11 @@ mca_status_t mca_att_gravity_apply_nocheck(mca_att_t *att, const float nu[2], co
  * mca_wrap_pi, so the caller keeps it out) */
 mca_status_t mca_att_yaw_nocheck(mca_att_t *att, float psi_m, float r_rad2, const float q_d[4], float *ws);
 
+/* mca_att_align_yaw with att non-NULL, psi_m finite and r finite, > 0 */
+void mca_att_align_yaw_nocheck(mca_att_t *att, float psi_m, float r);
+
+/* mca_att_mag_heading with every pointer non-NULL, m and decl finite (a zero m is still
+ * MCA_ERR_BAD_ARG) */
+mca_status_t mca_att_mag_heading_nocheck(const mca_att_t *att, const float m[3], float decl, float *psi_m);
+
 #endif /* MCA_ATT_NOCHECK_H */
