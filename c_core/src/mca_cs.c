@@ -640,8 +640,8 @@ MCA_NOINLINE static void pair_rows(mca_cs3_t *cs, const float pos[3], const floa
         aid_test(&ax->aid, zq, rq, rows, MCA_CS_NZ, nu_t, c_t);
         failed[i] = mca_kf_fuzzy_failed(&ax->cfg.robust, &ax->rs, nu_t, c_t, MCA_CS_NZ, ws);
     }
-    cs->axis[0].rs.started = (uint8_t)failed[1];
-    cs->axis[1].rs.started = (uint8_t)failed[0];
+    cs->axis[0].rs.started |= (uint8_t)failed[1];
+    cs->axis[1].rs.started |= (uint8_t)failed[0];
 }
 
 mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],

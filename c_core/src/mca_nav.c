@@ -132,7 +132,6 @@ MCA_COLD mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg)
     mca_copy_bytes(&nav->cfg, cfg, sizeof(nav->cfg));
     nav->g_mps2 = cfg->gravity_mps2 > 0.0f ? cfg->gravity_mps2 : G0;
     nav->att.q_nb[0] = 1.0f;
-    nav->last_rp_t = NAN; /* not set yet */
     for (size_t i = 0; i < 3u; ++i) {
         nav->last_gps_t[i] = NAN;
     }
@@ -312,7 +311,6 @@ static void gravity_done(mca_nav_t *nav, int hist_miss, mca_status_t st)
     }
     nav->flags &= ~(uint32_t)MCA_FLAG_GRAV_SKIPPED;
     nav->n_grav_obs++;
-    nav->last_rp_t = nav->att.rs.t_stat;
 }
 
 /* One roll/pitch observation from a history entry, at its attitude; counts and flags. */
@@ -330,8 +328,13 @@ static void gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const float a
 /* Yaw observation, or the alignment when yaw was never observed (ALGORITHMS.md 7). */
 static mca_status_t yaw_obs(mca_nav_t *nav, float psi_m, float r, const float q_d[4])
 {
-    const mca_status_t st = nav->have_yaw_obs ? mca_att_yaw_nocheck(&nav->att, psi_m, r, q_d, nav->ws)
-                                              : mca_att_align_yaw(&nav->att, psi_m, r);
+    /* psi_m finite and r finite, > 0: as the yaw update, the alignment takes them unchecked */
+    mca_status_t st = MCA_OK;
+    if (nav->have_yaw_obs) {
+        st = mca_att_yaw_nocheck(&nav->att, psi_m, r, q_d, nav->ws);
+    } else {
+        mca_att_align_yaw_nocheck(&nav->att, psi_m, r);
+    }
     if (st == MCA_OK) {
         nav->t_lastyaw_us = nav->t_imu_us;
         nav->have_yaw_obs = 1u;
@@ -412,10 +415,72 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
     return 1;
 }
 
+enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u }; /* mca_nav_t.step_flags */
+
+/* The fuzzy memories' D of N and E raised to at least v (up) or lowered to at most v. */
+MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
+{
+    for (size_t i = 0; i < 2u; ++i) {
+        float *d = &nav->cs.axis[i].rs.d_k;
+        *d = (up ? *d < v : *d > v) ? v : *d;
+    }
+}
+
+/* The velocity step test (ALGORITHMS.md 8, GPS step 3): the fix's N/E velocity against the
+ * anchor carried on by the IMU increments. A step holds the anchor and leaves both velocity
+ * rows out (the N/E pair's rows, with the alarm) until the fix passes again, steps back, or
+ * the whole-update guard's count of fixes has passed. */
+MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, const mca_cs_inc_t inc[3], float var_h,
+                                   float coast_h, float t, uint8_t hold)
+{
+    const float *v = fv->vel_ned_mps;
+    float pred[2], s[2], e2 = 0.0f, r2 = 0.0f, dot = 0.0f, n0 = 0.0f;
+    for (size_t i = 0; i < 2u; ++i) {
+        pred[i] = nav->step_v[i] + inc[i].dv_mps;
+        s[i] = v[i] - pred[i];
+        const float r = v[i] - nav->vel_prev[i] - inc[i].dv_mps; /* the raw step from the last fix */
+        e2 += s[i] * s[i];
+        r2 += r * r;
+        dot += (hold != 0u ? r : s[i]) * nav->step_s0[i];
+        n0 += nav->step_s0[i] * nav->step_s0[i];
+    }
+    const float g4 = mca_chi2_quantile(2u, MCA_CHI2_1E4);
+    const float g = hold != 0u ? mca_chi2_quantile(2u, MCA_CHI2_5E3) : g4;
+    const float c_raw = 2.0f * fv->s_acc_mps * fv->s_acc_mps + var_h * t * t;
+    const int fail = e2 > g * (fv->s_acc_mps * fv->s_acc_mps + nav->step_var + var_h * t * t);
+    /* the return: the reverse of the step that started the hold, within it the raw step, after a
+     * release with the fault still in the anchor's */
+    const float q = hold != 0u ? r2 : e2;
+    const int ret = fail && dot < 0.0f && dot * dot >= 0.5f * q * n0 && q >= 0.25f * n0 && q <= 2.25f * n0 &&
+                    (hold != 0u ? r2 > g4 * c_raw : (nav->step_flags & STEP_ARMED) != 0u);
+    nav->step_flags |= STEP_TESTED;
+    if (fail && !ret && hold < nav->cs.axis[0].cfg.robust.reject_reset_n) {
+        if (hold == 0u) {
+            mca_copyf(nav->step_s0, s, 2u);
+            nav->step_flags &= (uint8_t)~STEP_ARMED;
+        }
+        mca_copyf(nav->step_v, pred, 2u);
+        nav->step_var += coast_h * t * t;
+        nav->step_hold = (uint8_t)(hold + 1u);
+        nav->cs.axis[0].rs.started |= MCA_CS_VEL;
+        nav->cs.axis[1].rs.started |= MCA_CS_VEL;
+        step_dk(nav, 2.0f, 1);
+    } else if (ret || hold != 0u) {
+        /* a release with the fault still in (no raw step) arms the return; else the fault ended */
+        const int armed = !ret && r2 <= g * c_raw;
+        nav->step_flags = (uint8_t)(armed ? nav->step_flags | STEP_ARMED : nav->step_flags & ~STEP_ARMED);
+        if (!armed) {
+            step_dk(nav, 1.0f, 0);
+        }
+    }
+}
+
 /* CS predict over t to the fix at t_fix, IMU-aided on the axes where that is possible
  * (ALGORITHMS.md 8, GPS step 3). */
-MCA_NOINLINE static void cs_predict(mca_nav_t *nav, uint64_t t_fix, float t)
+MCA_NOINLINE static void cs_predict(mca_nav_t *nav, uint64_t t_fix, float t, const mca_fix_view_t *fv)
 {
+    const uint8_t hold = nav->step_hold;
+    nav->step_hold = 0u;
     mca_cs_inc_t inc[3];
     const mca_cs_inc_t *use[3] = {NULL, NULL, NULL};
     if (nav->cfg.gps_test_imu && nav->aligned && hist_increments(nav, nav->t_lastfix_us, t_fix, inc)) {
@@ -440,6 +505,11 @@ MCA_NOINLINE static void cs_predict(mca_nav_t *nav, uint64_t t_fix, float t)
             inc[i].acc_var_m2ps4 = i < 2u ? var_h : s2;
             inc[i].coast_var_m2ps4 = i < 2u ? coast_h : c2;
             use[i] = (i == 2u || aid_h) ? &inc[i] : NULL;
+        }
+        const mca_robust_config_t *rc = &nav->cs.axis[0].cfg.robust;
+        if (aid_h && rc->mode == (uint8_t)MCA_ROBUST_FUZZY && rc->fuzzy_reject == 2u && (fv->vel_mask & 3u) == 3u &&
+            (nav->step_flags & STEP_ANCHOR) != 0u) {
+            step_test(nav, fv, inc, var_h, coast_h, t, hold);
         }
     }
     /* 0 < t <= dt_max (mca_nav_gps); the increments of finite history entries are finite and
@@ -639,7 +709,7 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
         ((has_vne || has_vd) && !mca_positive(rv[0]))) { /* N and E always take their position; */
         return MCA_ERR_BAD_ARG;                             /* rv is one variance on every axis */
     }
-    cs_predict(nav, fix->t_us, t);
+    cs_predict(nav, fix->t_us, t, fv);
     /* No report (T is read from the axis memory; N and E can then share one covariance
      * update). An axis can fail only numerically, and then it is left unchanged
      * (mca_cs_axis_update is atomic) and keeps its T. */
@@ -748,6 +818,7 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
 static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
 {
     mca_cs3_init_nocheck(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel); /* checked at init and entry */
+    nav->step_hold = 0u;
     for (size_t i = 0; i < 3u; ++i) {
         nav->acc_comp_n[i] = 0.0f;
         nav->cs.axis[i].rs.t_stat = NAN;
@@ -798,6 +869,17 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
     nav->have_fix = 1u;
     nav->t_lastfix_us = fix->t_us;
     memcpy(nav->vel_prev, fv.vel_ned_mps, sizeof(nav->vel_prev));
+    if (nav->step_hold == 0u) {
+        /* the next anchor: this fix's N/E velocity, when the step test passed it or the CS
+         * applied it (GPS step 3) */
+        const int ok = (fv.vel_mask & 3u) == 3u && ((nav->step_flags & STEP_TESTED) != 0u ||
+                                                     (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) == 0u);
+        mca_copyf(nav->step_v, fv.vel_ned_mps, 2u);
+        nav->step_var = fv.s_acc_mps * fv.s_acc_mps;
+        nav->step_flags = (uint8_t)((nav->step_flags & STEP_ARMED) | (ok ? STEP_ANCHOR : 0u));
+    } else {
+        nav->step_flags &= (uint8_t)~STEP_TESTED;
+    }
     nav->prev_vel_mask = fv.vel_mask;
     return MCA_OK;
 }
@@ -820,7 +902,7 @@ mca_status_t mca_nav_mag(mca_nav_t *nav, uint64_t t_us, const float mag_b[3])
         return MCA_OK;
     }
     float psi;
-    mca_status_t st = mca_att_mag_heading(&nav->att, mag_b, nav->cfg.mag_declination_rad, &psi);
+    mca_status_t st = mca_att_mag_heading_nocheck(&nav->att, mag_b, nav->cfg.mag_declination_rad, &psi);
     if (st != MCA_OK) {
         return MCA_OK; /* zero vector: skipped (ALGORITHMS.md 8) */
     }
@@ -862,7 +944,7 @@ void mca_nav_output(const mca_nav_t *nav, mca_nav_output_t *out)
     for (size_t i = 0; i < 6u; ++i) {
         out->att_var[i] = nav->att.p[i * 7u];
     }
-    out->rp_t = nav->last_rp_t;
+    out->rp_t = nav->n_grav_obs != 0u ? nav->att.rs.t_stat : NAN; /* its memory's T, the last observation's */
     f |= nav->aligned ? (uint32_t)MCA_FLAG_ALIGNED : 0u;
     f |= nav->home_set ? (uint32_t)MCA_FLAG_HOME_SET : 0u;
     f |= gps_lost(nav, nav->t_imu_us) ? (uint32_t)MCA_FLAG_GPS_LOST : 0u;

@@ -131,9 +131,14 @@ typedef struct {
     uint32_t init_n_all;
     uint32_t init_n;
     uint8_t init_still;      /**< every sample of the window was still */
+    uint8_t step_hold;       /**< velocity step test: fixes the anchor has been held for (0: the last fix is it) */
+    uint8_t step_flags;      /**< velocity step test: anchor, armed, tested (mca_nav.c) */
     float g_mps2;
     float acc_comp_n[3];     /**< compensation acceleration of the last fix */
     float vel_prev[3];       /**< velocity of the last fix (at t_lastfix_us; differencing) */
+    float step_v[2];         /**< velocity step test (ALGORITHMS.md 8, GPS step 3): the N/E anchor */
+    float step_s0[2];        /**< the step that started the last hold */
+    float step_var;          /**< the anchor's variance an axis: its fix's s_acc^2, plus coast_h t^2 a fix held */
     uint8_t prev_vel_mask;   /**< bit i: vel_prev[i] valid */
     uint8_t have_imu;
     uint8_t aligned;
@@ -148,7 +153,6 @@ typedef struct {
     float grav_nu[2];        /**< the pending observation's residuals, rows (at q_nb) and R */
     float grav_rows[6];
     float grav_r;
-    float last_rp_t;
     float last_gps_t[3];
     uint32_t n_grav_obs;
     uint32_t n_grav_skip;
