@@ -481,6 +481,7 @@ MCA_NOINLINE static void cs_predict(mca_nav_t *nav, uint64_t t_fix, float t, con
 {
     const uint8_t hold = nav->step_hold;
     nav->step_hold = 0u;
+    nav->step_flags &= (uint8_t)~STEP_TESTED; /* this fix's, set by step_test */
     mca_cs_inc_t inc[3];
     const mca_cs_inc_t *use[3] = {NULL, NULL, NULL};
     if (nav->cfg.gps_test_imu && nav->aligned && hist_increments(nav, nav->t_lastfix_us, t_fix, inc)) {
@@ -877,8 +878,6 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
         mca_copyf(nav->step_v, fv.vel_ned_mps, 2u);
         nav->step_var = fv.s_acc_mps * fv.s_acc_mps;
         nav->step_flags = (uint8_t)((nav->step_flags & STEP_ARMED) | (ok ? STEP_ANCHOR : 0u));
-    } else {
-        nav->step_flags &= (uint8_t)~STEP_TESTED;
     }
     nav->prev_vel_mask = fv.vel_mask;
     return MCA_OK;

@@ -154,11 +154,37 @@ static void test_bad_input_leaves_state(void)
     CHECK(memcmp(&before, &att, sizeof(att)) == 0);
 }
 
+/* The gravity update's robust inputs are checked by mca_att_update_gravity, since the filter's
+ * own path skips them (mca_robust_inputs_check): a fuzzy memory no update can have left, or an
+ * unknown mode, is refused and nothing changes; the same observation with good ones is taken. */
+static void test_gravity_update_refuses_bad_robust_inputs(void)
+{
+    const float f[3] = {0.6f, -1.9f, -9.5f};
+    const float acc[3] = {0.0f, 0.0f, 0.0f};
+    mca_att_t att;
+    make_att(&att, 4u);
+    att.cfg.robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
+    for (int k = 0; k < 2; ++k) {
+        mca_att_t bad = att;
+        if (k == 0) {
+            bad.rs.d_k = -1.0f; /* D is never negative */
+        } else {
+            bad.cfg.robust.mode = 9u;
+        }
+        const mca_att_t copy = bad;
+        CHECK_EQ_INT(mca_att_update_gravity(&bad, f, acc, bad.q_nb, 9.80665f, 1e-4f, g_ws, NULL),
+                     k == 0 ? MCA_ERR_BAD_ARG : MCA_ERR_BAD_CONFIG);
+        CHECK(memcmp(&bad, &copy, sizeof bad) == 0);
+    }
+    CHECK_EQ_INT(mca_att_update_gravity(&att, f, acc, att.q_nb, 9.80665f, 1e-4f, g_ws, NULL), MCA_OK);
+}
+
 int main(void)
 {
     test_plain_path_equals_general_update();
     test_two_halves_equal_the_whole_observation();
     test_tilt_gates();
     test_bad_input_leaves_state();
+    test_gravity_update_refuses_bad_robust_inputs();
     TEST_MAIN_END();
 }

@@ -400,6 +400,39 @@ static void test_ne_pair_shares_the_rows_out_with_the_failing_ones(void)
     }
 }
 
+/* The robust inputs (configuration and memory) the update reads are checked by the public
+ * entries, since the filters' own paths skip them (mca_robust_inputs_check): a corrupted memory
+ * or an unknown mode is refused by mca_cs_axis_update and mca_cs3_update, and nothing changes. */
+static void test_public_updates_refuse_bad_robust_inputs(void)
+{
+    mca_cs_config_t h, v;
+    fuzzy_rows_config(&h);
+    mca_cs_config_default_v(&v);
+    mca_cs3_t cs;
+    const float p0[3] = {0.0f, 0.0f, 0.0f};
+    CHECK_EQ_INT(mca_cs3_init(&cs, &h, &v, p0, NULL), MCA_OK);
+    CHECK_EQ_INT(mca_cs3_predict(&cs, 0.2f), MCA_OK);
+    float ws[MCA_CS_WS_LEN];
+    const float pos[3] = {1.0f, 2.0f, 3.0f}, vel[3] = {0.5f, 0.5f, 0.0f};
+    const float rp[3] = {1.0f, 1.0f, 4.0f}, rv[3] = {0.01f, 0.01f, 0.01f};
+    const uint8_t both[3] = {MCA_CS_POS | MCA_CS_VEL, MCA_CS_POS | MCA_CS_VEL, MCA_CS_POS};
+    mca_update_report_t rep;
+    for (int k = 0; k < 2; ++k) {
+        mca_cs3_t bad = cs;
+        if (k == 0) {
+            bad.axis[1].rs.alarm = 7u; /* a memory no update can have left */
+        } else {
+            bad.axis[1].cfg.robust.mode = 9u; /* no such mode */
+        }
+        const mca_status_t want = k == 0 ? MCA_ERR_BAD_ARG : MCA_ERR_BAD_CONFIG;
+        const mca_cs3_t copy = bad;
+        CHECK_EQ_INT(mca_cs3_update(&bad, pos, vel, rp, rv, both, ws, NULL), want);
+        CHECK_EQ_INT(mca_cs_axis_update(&bad.axis[1], pos[1], vel[1], rp[1], rv[1], both[1], ws, &rep), want);
+        CHECK(memcmp(&bad, &copy, sizeof bad) == 0);
+    }
+    CHECK_EQ_INT(mca_cs3_update(&cs, pos, vel, rp, rv, both, ws, NULL), MCA_OK); /* the control */
+}
+
 int main(void)
 {
     test_shared_ne_update_same_bits();
@@ -411,5 +444,6 @@ int main(void)
     test_coast_start_with_the_position_applied();
     test_ne_pair_leaves_the_partner_rows_out();
     test_ne_pair_shares_the_rows_out_with_the_failing_ones();
+    test_public_updates_refuse_bad_robust_inputs();
     TEST_MAIN_END();
 }
