@@ -662,14 +662,18 @@ mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float
     if (mca_geo_check(fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0) != MCA_OK) {
         return MCA_ERR_RANGE;
     }
-    if ((has_vne && (!isfinite(fix->vel_ned_mps[0]) || !isfinite(fix->vel_ned_mps[1]))) ||
-        (has_vd && !isfinite(fix->vel_ned_mps[2]))) {
-        return MCA_ERR_NONFINITE;
+    /* a velocity present: finite (NONFINITE wins), then within MCA_FIX_VEL_MAX_MPS (RANGE) */
+    const uint8_t vmask = (uint8_t)((has_vne ? 3u : 0u) | (has_vd ? 4u : 0u));
+    mca_status_t sv = MCA_OK;
+    for (size_t i = 0; i < 3u; ++i) {
+        const float v = ((vmask >> i) & 1u) != 0u ? fix->vel_ned_mps[i] : 0.0f;
+        sv = !isfinite(v) ? MCA_ERR_NONFINITE : (fabsf(v) > MCA_FIX_VEL_MAX_MPS && sv == MCA_OK ? MCA_ERR_RANGE : sv);
+        view->vel_ned_mps[i] = v;
     }
-    view->vel_ned_mps[0] = has_vne ? fix->vel_ned_mps[0] : 0.0f;
-    view->vel_ned_mps[1] = has_vne ? fix->vel_ned_mps[1] : 0.0f;
-    view->vel_ned_mps[2] = has_vd ? fix->vel_ned_mps[2] : 0.0f;
-    view->vel_mask = (uint8_t)((has_vne ? 3u : 0u) | (has_vd ? 4u : 0u));
+    if (sv != MCA_OK) {
+        return sv;
+    }
+    view->vel_mask = vmask;
     view->has_alt = has_alt ? 1u : 0u;
     view->h_acc_m = sigma_or(fix->h_acc_m, pos_sigma_m);
     view->v_acc_m = sigma_or(fix->v_acc_m, alt_sigma_m);

@@ -150,6 +150,12 @@ def test_bad_gps_input_returns_status_and_keeps_state() -> None:
         nav.gps(t, **{**good, "alt_mm": -2_000_000})
     with pytest.raises(errors.NonFiniteError):
         nav.gps(t, **{**good, "vel_ned_mps": [0.0, float("nan"), 0.0]})
+    with pytest.raises(errors.NonFiniteError):  # not finite wins over out of range
+        nav.gps(t, **{**good, "vel_ned_mps": [2000.0, float("inf"), 0.0]})
+    # a finite velocity past any receiver's limit: taken in, 1e30 m/s ran the CS state out to 1e30
+    for vel in ([1e30, 0.0, 0.0], [0.0, -1000.5, 0.0], [0.0, 0.0, 1001.0]):
+        with pytest.raises(errors.RangeError):
+            nav.gps(t, **{**good, "vel_ned_mps": vel})
     with pytest.raises(errors.TimeBackwardsError):
         nav.gps(t - 500_000, **good)  # older than the last fix
     # an accuracy whose square is no finite float: refused before the CS predicts to the fix (a

@@ -31,6 +31,9 @@
 #define MCA_FIX_VEL_NE 1
 #define MCA_FIX_VEL_D 2
 #define MCA_FIX_ALT 4
+/** Largest velocity component a fix may carry (m/s): above any receiver's limit (COCOM 515 m/s).
+ *  A larger one is MCA_ERR_RANGE: taken in, it would run the CS state out to float32's range. */
+#define MCA_FIX_VEL_MAX_MPS 1000.0f
 
 /** Output flag bits (mca_nav_output_t.flags) */
 #define MCA_FLAG_ALIGNED 1
@@ -189,7 +192,8 @@ typedef struct {
  * Check a fix's own content (ALGORITHMS.md 8, GPS step 1 without the time test) and read it,
  * missing or non-positive accuracies replaced by the given defaults. Shared by every filter
  * that takes fixes (navigation, INS). Cost: a few compares.
- * @return MCA_ERR_NULL, MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE, MCA_ERR_NONFINITE (a
+ * @return MCA_ERR_NULL, MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE (lat/lon/altitude, or a
+ *         velocity component flagged present over MCA_FIX_VEL_MAX_MPS), MCA_ERR_NONFINITE (a
  *         velocity flagged present but not finite), MCA_OK (view filled).
  */
 mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float alt_sigma_m, float vel_sigma_mps,

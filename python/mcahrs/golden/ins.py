@@ -30,7 +30,14 @@ import pymap3d
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
-from mcahrs.errors import BadArgError, BadConfigError, BadDtError, NonFiniteError, TimeBackwardsError
+from mcahrs.errors import (
+    BadArgError,
+    BadConfigError,
+    BadDtError,
+    NonFiniteError,
+    RangeError,
+    TimeBackwardsError,
+)
 from mcahrs.golden import geo
 from mcahrs.golden.robust import (
     RobustConfig,
@@ -74,6 +81,7 @@ STILL_SPEED = 0.5  # m/s: GNSS ground speed below which a still window may re-le
 G0 = 9.80665
 YAW_NONE, YAW_MAG, YAW_COG = 0, 1, 2
 FIX_VEL_NE, FIX_VEL_D, FIX_ALT = 1, 2, 4  # mca_gps_fix_t flags (ALGORITHMS.md 8)
+FIX_VEL_MAX_MPS = 1000.0  # a larger velocity component is RANGE (ALGORITHMS.md 8, GPS step 1)
 
 FLAG_ALIGNED, FLAG_HOME_SET, FLAG_NAV, FLAG_YAW_ALIGNED = 1, 2, 4, 8
 FLAG_GPS_LOST, FLAG_HIST_MISS, FLAG_REJECTED, FLAG_SATURATED = 16, 32, 64, 128
@@ -703,8 +711,11 @@ class Ins:
         lat_e7, lon_e7, alt_mm = int(get("lat_e7")), int(get("lon_e7")), int(get("alt_mm"))
         geo.check_geodetic(lat_e7, lon_e7, alt_mm if has_alt else 0)
         vel_in = np.asarray(get("vel_ned_mps"), float)
-        if (has_vne and not np.all(np.isfinite(vel_in[:2]))) or (has_vd and not math.isfinite(vel_in[2])):
+        present = np.array([has_vne, has_vne, has_vd])
+        if not np.all(np.isfinite(vel_in[present])):
             raise NonFiniteError("fix velocity not finite")
+        if np.any(np.abs(vel_in[present]) > FIX_VEL_MAX_MPS):
+            raise RangeError(f"fix velocity {vel_in[present]} m/s: a component over {FIX_VEL_MAX_MPS:g} m/s")
         t_fix = int(get("t_us"))
         if self.have_fix and t_fix <= self.t_lastfix:
             raise TimeBackwardsError(f"fix time {t_fix} <= {self.t_lastfix}")
