@@ -848,6 +848,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
         return MCA_ERR_TIME_BACKWARDS;
     }
     const int has_alt = fv.has_alt != 0u;
+    mca_status_t st = MCA_OK;
     if (!nav->home_set) {
         mca_geo_set_home_nocheck(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
         nav->home_set = 1u;
@@ -864,11 +865,16 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
         if (t > nav->cfg.cs_h.dt_max_s || t > nav->cfg.cs_v.dt_max_s) {
             cs_start(nav, ned, fv.vel_ned_mps);
         } else {
-            const mca_status_t st = gps_cs(nav, fix, &fv, ned, t);
-            if (st != MCA_OK) {
-                return st;
+            st = gps_cs(nav, fix, &fv, ned, t);
+            if (st == MCA_ERR_BAD_ARG) {
+                return st; /* refused before the predict: nothing changed */
             }
-            gps_attitude(nav, fix, &fv);
+            /* an axis update that failed numerically (SINGULAR, NONFINITE) left that axis as
+             * predicted: the CS is at the fix time all the same (GPS step 4), but the fix makes
+             * no attitude observation */
+            if (st == MCA_OK) {
+                gps_attitude(nav, fix, &fv);
+            }
         }
     }
     nav->have_fix = 1u;
@@ -884,7 +890,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
         nav->step_flags = (uint8_t)((nav->step_flags & STEP_ARMED) | (ok ? STEP_ANCHOR : 0u));
     }
     nav->prev_vel_mask = fv.vel_mask;
-    return MCA_OK;
+    return st;
 }
 
 mca_status_t mca_nav_mag(mca_nav_t *nav, uint64_t t_us, const float mag_b[3])

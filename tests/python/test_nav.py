@@ -171,6 +171,37 @@ def test_bad_gps_input_returns_status_and_keeps_state() -> None:
     assert state_finite(nav)
 
 
+def test_a_numerically_failed_cs_update_still_moves_the_cs_time_to_the_fix() -> None:
+    """ALGORITHMS.md 8, GPS step 4: an axis update that fails numerically returns its status, but
+    the CS was predicted to the fix, so the next fix predicts from it: the axes that did update
+    (D here) go on exactly as in a run whose N axis never failed."""
+
+    def run(corrupt: bool) -> list[tuple[list[float], list[float]]]:
+        nav, t = running_nav()
+        down = []
+        for k in range(3):
+            for _ in range(80):
+                t += 2500
+                nav.imu(t, [0.001, -0.002, 0.0005], [0.1, -0.2, -9.79])
+            fix = (t - 100_000, 305_000_020, 1_143_000_020, 50_020, [0.0, 0.0, 0.0], 2.5, 5.0, 0.1)
+            if k == 1 and corrupt:
+                p_nn = nav._nav.cs.axis[0].p[0]
+                nav._nav.cs.axis[0].p[0] = -100.0  # N's position variance indefinite: C < 0
+                with pytest.raises(errors.SingularError):
+                    nav.gps(*fix)
+                assert nav._nav.t_lastfix_us == fix[0]
+                assert state_finite(nav)
+                nav._nav.cs.axis[0].p[0] = p_nn  # N repaired; D was not touched
+            else:
+                nav.gps(*fix)
+            down.append((list(nav._nav.cs.axis[2].x), list(nav._nav.cs.axis[2].p)))
+        return down
+
+    clean, failed = run(False), run(True)
+    assert failed[1] == clean[1]  # D updated at the failed fix
+    assert failed[2] == clean[2]  # and predicted from it, not over the interval again
+
+
 def test_bad_mag_and_config_input() -> None:
     nav, t = running_nav("multirotor")
     before = state_bytes(nav)
