@@ -22,6 +22,7 @@ from mcahrs.errors import (
     TimeBackwardsError,
 )
 from mcahrs.golden import attitude as att
+from mcahrs.golden import cs as gcs
 from mcahrs.golden import geo
 from mcahrs.golden import nav as gnav
 from mcahrs.samples import (
@@ -828,9 +829,9 @@ def test_lost_gps_observation_decay_centripetal_term_and_noise(
     calls: list[tuple] = []
     real = att.roll_pitch_update
 
-    def spy(q, b, P, f_b, a_n, q_d, r_acc, g, acfg):  # type: ignore[no-untyped-def]
+    def spy(q, b, P, f_b, a_n, q_d, r_acc, g, acfg, *rest):  # type: ignore[no-untyped-def]
         calls.append((np.array(a_n), r_acc, q_d, nav.q, nav.b, nav.a_last, nav.t_lastfix_us, nav.t_imu_us))
-        return real(q, b, P, f_b, a_n, q_d, r_acc, g, acfg)
+        return real(q, b, P, f_b, a_n, q_d, r_acc, g, acfg, *rest)
 
     monkeypatch.setattr(att, "roll_pitch_update", spy)
     gyro = (0.0, 0.01, 0.2)  # turning right, slightly pitching up
@@ -860,11 +861,11 @@ def test_multirotor_preset_makes_no_centripetal_correction(monkeypatch: pytest.M
     seen: list[tuple[np.ndarray, np.ndarray]] = []
     real = att.roll_pitch_update
 
-    def spy(q, b, P, f_b, a_n, q_d, r_acc, g, acfg):  # type: ignore[no-untyped-def]
+    def spy(q, b, P, f_b, a_n, q_d, r_acc, g, acfg, *rest):  # type: ignore[no-untyped-def]
         assert nav.t_lastfix_us is not None and nav.t_imu_us is not None
         decay = math.exp(-(nav.t_imu_us - nav.t_lastfix_us) * 1e-6 / 2.0)
         seen.append((np.array(a_n), np.array(nav.a_last) * decay))
-        return real(q, b, P, f_b, a_n, q_d, r_acc, g, acfg)
+        return real(q, b, P, f_b, a_n, q_d, r_acc, g, acfg, *rest)
 
     monkeypatch.setattr(att, "roll_pitch_update", spy)
     t = nav.t_imu_us
@@ -911,12 +912,12 @@ def test_gps_observation_noise_adds_the_yaw_uncertainty_term(
     got: list[tuple[float, float]] = []
     real = att.roll_pitch_update
 
-    def spy(q, b, P, f_b, a_n, q_d, r_acc, g, acfg):  # type: ignore[no-untyped-def]
+    def spy(q, b, P, f_b, a_n, q_d, r_acc, g, acfg, *rest):  # type: ignore[no-untyped-def]
         pn, pe = nav.cs.axes[0].P[2, 2], nav.cs.axes[1].P[2, 2]
         a = [ax.x[2] for ax in nav.cs.axes]
         expected = (pn + pe) / (2 * G**2) + (a[0] ** 2 + a[1] ** 2) * P[2, 2] / G**2
         got.append((r_acc, expected))
-        return real(q, b, P, f_b, a_n, q_d, r_acc, g, acfg)
+        return real(q, b, P, f_b, a_n, q_d, r_acc, g, acfg, *rest)
 
     monkeypatch.setattr(att, "roll_pitch_update", spy)
     nav.gps(_good_fix(nav, vel_ned_mps=(12.4, 0.0, 0.0)))
@@ -964,3 +965,74 @@ def test_nis_outputs_are_nan_until_first_set() -> None:
     t_second_fix = int(rec.gnss["t_rx_us"][1])  # the home fix makes no CS update
     before = out["t_us"] <= t_second_fix  # at equal times the IMU row comes first
     assert np.all(np.isnan(out["gps_T"][before])) and np.all(np.isfinite(out["gps_T"][~before]))
+
+
+# --------------------------------------------------------------------------------------
+# Robust modes at the navigation level (ALGORITHMS.md 2, 5, 8; golden/nav.py choices 13-21)
+# --------------------------------------------------------------------------------------
+
+
+def _rows_axes() -> gcs.Cs3:
+    from mcahrs.golden.robust import RobustConfig
+
+    rows = RobustConfig("fuzzy", fuzzy_reject=2, reject_reset_n=100, row_reset_n=0)
+    cfg_h = replace(gcs.CsAxisConfig.horizontal(), coast=True, robust=rows)
+    cfg_v = replace(gcs.CsAxisConfig.vertical(), coast=True, robust=rows)
+    cs = gcs.Cs3(cfg_h, cfg_v)
+    cs.init((0.0, 0.0, 0.0), (5.0, 2.0, 0.0))
+    return cs
+
+
+def test_held_velocity_goes_out_of_both_horizontal_axes_which_then_coast() -> None:
+    """A fix the velocity step test holds (``vel_held``) leaves the N and E velocity rows out
+    (the N/E pair's rows), the position rows in; both axes are then marked to coast, from the
+    IMU-aided prediction, and the next aided predict moves p and v with the IMU increments."""
+    cs = _rows_axes()
+    T = 0.2
+    inc = [gcs.AxisInc(5.0 * T, 0.0, 0.09, 0.0225), gcs.AxisInc(2.0 * T, 0.0, 0.09, 0.0225), None]
+    cs.predict_aided(T, inc)
+    shift = [ax.shift.copy() for ax in cs.axes[:2]]
+    x_pred = [ax.x.copy() for ax in cs.axes[:2]]
+    reps = cs.update_robust(
+        z_p=(1.0, 0.4, 0.0), z_v=(5.0, 2.0, 0.0), r_p=(1.0, 1.0, 4.0), r_v=(0.01, 0.01, 1.0), mask=(3, 3, 1),
+        vel_held=True,
+    )  # fmt: skip
+    for i, ax in enumerate(cs.axes[:2]):
+        assert ax.out and ax.left and ax.mem.n_removed[:2] == [0, 1] and not reps[i].rejected
+        assert ax.prior is None  # consumed
+        # the position row applied: p moved by its gain, plus the coast's start shift
+        assert abs(ax.x[0] - (x_pred[i][0] + shift[i][0])) < 0.5
+    assert not cs.axes[2].out  # D untouched by the hold
+    v_before = [float(ax.x[1]) for ax in cs.axes[:2]]
+    inc = [gcs.AxisInc(0.0, 0.3, 0.09, 0.0225), gcs.AxisInc(0.0, -0.1, 0.09, 0.0225), None]
+    cs.predict_aided(T, inc)
+    assert cs.axes[0].x[1] == pytest.approx(v_before[0] + 0.3, abs=1e-12)  # coasting: v += dv
+    assert cs.axes[1].x[1] == pytest.approx(v_before[1] - 0.1, abs=1e-12)
+
+
+def test_unaided_update_has_no_pair_and_no_coast_shift() -> None:
+    """Without a prior (no IMU increments) an axis tests its own innovation, the N/E pair is not
+    formed, and a plain predict follows whatever the mark."""
+    cs = _rows_axes()
+    cs.predict_aided(0.2, [None, None, None])
+    assert all(ax.prior is None for ax in cs.axes)
+    reps = cs.update_robust(
+        z_p=(1.0, 0.4, 0.0), z_v=(5.0, 2.0, 0.0), r_p=(1.0, 1.0, 4.0), r_v=(0.01, 0.01, 1.0), mask=(3, 3, 1),
+        vel_held=True,  # no pair without priors: nothing held
+    )  # fmt: skip
+    assert not any(r.rejected for r in reps if r is not None)
+    assert not any(ax.out or ax.left for ax in cs.axes)
+
+
+def test_robust_configurations_are_validated_and_carried() -> None:
+    from mcahrs.golden.robust import RobustConfig
+
+    cfg = gnav.NavConfig.preset("fixedwing")
+    assert cfg.cs_h.robust == RobustConfig() and cfg.att.robust == RobustConfig()  # plain presets
+    gnav.Nav(replace(cfg, gps_test_imu=0))  # a 0/1 switch
+    with pytest.raises(BadConfigError):
+        gnav.Nav(replace(cfg, cs_h=replace(cfg.cs_h, robust=RobustConfig("nope"))))
+    with pytest.raises(BadConfigError):
+        gnav.Nav(replace(cfg, att=replace(cfg.att, robust=RobustConfig("fta", igg_k0=5.0))))
+    with pytest.raises(BadConfigError):
+        gnav.Nav(replace(cfg, gps_test_imu=2))

@@ -12,6 +12,16 @@ largest gap measured over the cases here (the numbers are in the comments of ``T
 Discrete events (an observation gate or threshold) can flip on a float32 rounding: they are
 counted, the count is bounded (see ``MAX_DISCRETE``), and the continuous comparison stops at
 the first one rather than hiding it behind a loose tolerance.
+
+Robust modes (ALGORITHMS.md 2, 5, 8): the cases with a ``profile`` run ``core.robust_profile`` on
+both sides (the golden configuration built from the same dotted overrides, robust configurations
+included in the field-by-field check) over recordings with injected GNSS faults. Their discrete
+decisions are compared through what the C output exposes: the CS axes' alarms (flags
+``alarm_n``/``alarm_e``/``alarm_d``, in the flag comparison), and the roll/pitch observations made
+and skipped (a flagged fix and the ``tau_a`` after it skip them, GPS step 6); a velocity step test
+hold shows as both horizontal alarms and skipped observations. A case whose own tolerances differ
+(``Case.tol``) says why next to them (``TOL_COAST``, ``TOL_IGG``, ``TOL_AKF``); a case where the C
+differs from the spec is an ``xfail(strict=True)`` with the diagnosis (``XFAIL``).
 """
 
 from __future__ import annotations
@@ -27,6 +37,7 @@ from mcahrs import core, sim
 from mcahrs.golden import attitude as gatt
 from mcahrs.golden import cs as gcs
 from mcahrs.golden import nav as gnav
+from mcahrs.golden import robust as grobust
 from mcahrs.samples import GNSS_HAS_ALT, GNSS_HAS_VEL_D, GNSS_HAS_VEL_NE, Recording
 
 # --------------------------------------------------------------------------------------
@@ -46,7 +57,87 @@ class Case:
     seed: int = 1
     faults: bool = False  # inject bad and edge-case samples (_with_faults)
     nan_velocity: bool = False  # one fix with a NaN east velocity flagged present
+    profile: str | None = None  # robust profile on both sides (core.robust_profile)
+    receiver_model: bool = False  # the simulator's receiver model (core.receiver_model)
+    gnss_faults: tuple[tuple[float, ...], ...] = ()  # GNSS faults (_with_gnss_faults)
+    cs_only: bool = False  # the profile on the CS axes only (the attitude filter plain)
+    tol: dict[str, float] = field(default_factory=dict)  # TOL entries of this case (see TOL_COAST, TOL_IGG)
+    tilt_blips: tuple[float, ...] = ()  # start times of 0.8 s specific-force tilts (_with_tilt_blips)
 
+
+# GNSS faults (t0_s, t1_s, position offset m, velocity offset m/s, azimuth deg[, down position m,
+# down velocity m/s]) added to the fixes valid in [t0, t1): the kinds of benchmarks/bench_outliers.py
+# (position jumps 5-50 m, velocity spikes 1-5 m/s, bursts of either or both, one long position fault)
+# at fixed times.
+CAR_FAULTS = (
+    (12.0, 12.1, 15.0, 0.0, 30.0),  # single position jump (one fix at 5 Hz)
+    (14.0, 14.1, 0.0, 3.0, 200.0),  # single velocity spike
+    (16.0, 19.0, 0.0, 1.5, 70.0),  # 1-2 m/s velocity bursts: the step test's (GPS step 3)
+    (22.0, 24.0, 0.0, 1.2, 300.0),
+    (26.0, 29.0, 10.0, 2.0, 120.0),  # a burst of both
+    (35.0, 35.1, 0.0, 5.0, 10.0),  # spike at a stop
+    (48.0, 66.0, 25.0, 0.0, 250.0),  # long position fault (18 s of cruise)
+    (72.0, 72.1, 0.0, 2.0, 90.0),  # spike at a stop
+    (85.0, 88.0, 0.0, 1.8, 150.0),  # velocity burst while pulling away
+)
+FIXEDWING_FAULTS = (
+    (15.0, 15.1, 20.0, 0.0, 20.0),
+    (18.0, 18.1, 0.0, 4.0, 100.0),
+    (21.0, 24.0, 0.0, 1.5, 0.0),
+    (27.0, 29.0, 0.0, 1.1, 230.0),
+    (32.0, 35.0, 15.0, 1.5, 120.0),
+    (40.0, 60.0, 30.0, 0.0, 300.0),  # long position fault, through turns
+    (44.0, 46.0, 0.0, 0.0, 0.0, 25.0, 0.0),  # vertical: a 25 m altitude burst (the D axis alone)
+    (50.0, 52.0, 0.0, 0.0, 0.0, 0.0, 2.0),  # and a 2 m/s vertical velocity burst
+    (63.0, 87.0, 0.0, 1.0, 160.0),  # 24 s velocity burst: held to the guard (20 s), released armed,
+    (80.0, 80.1, 40.0, 0.0, 200.0),  # its end the armed return (GPS step 3)
+    (88.0, 88.1, 0.0, 2.5, 45.0),
+)
+
+# A car that stops for 25 s (yaw unobserved from ~10 s into the stop): faults before the first
+# course-over-ground yaw (no IMU-aided test: fuzzy rows' own test, guard 5), and a long position
+# fault through the stop and the pull-away (N and E leave a row out: the aided test's exception,
+# ALGORITHMS.md 8 GPS step 3), with velocity faults inside it.
+CAR_STOP_FAULTS = (
+    (3.0, 3.1, 0.0, 2.5, 60.0),  # at rest, before the first yaw observation
+    (4.0, 4.1, 12.0, 0.0, 200.0),
+    (40.0, 64.0, 20.0, 0.0, 330.0),  # long position fault from 8 s into the stop to the cruise
+    (47.0, 47.1, 0.0, 3.0, 150.0),  # yaw unobserved by now
+    (50.0, 53.0, 0.0, 1.5, 250.0),
+    (60.0, 62.0, 0.0, 1.4, 80.0),  # pulling away
+)
+
+# A 30 s GNSS outage (25-55 s, longer than the CS dt_max: the CS restarts at the first fix after it)
+# entered with a fault of both and a velocity burst held, and faults right after it (the step
+# test's anchor and the detectors' memories after the restart).
+OUTAGE_FAULTS = (
+    (15.0, 25.0, 15.0, 0.0, 45.0),
+    (20.0, 25.0, 0.0, 1.6, 300.0),
+    (56.0, 59.0, 0.0, 1.5, 120.0),
+    (62.0, 62.1, 25.0, 0.0, 10.0),
+    (64.0, 66.0, 0.0, 3.0, 200.0),
+)
+
+# Tolerances of the robust cases where they differ from TOL (measured: the largest of their cases).
+# Coasting (fuzzy rows, ALGORITHMS.md 2): p and v move with the IMU increments, which the C forms
+# from its float32 attitude; the attitude gap (<= 4.4e-5 rad, within TOL) tilts g by 4e-4 m/s^2,
+# which a 2-3 s coast integrates into the velocity (measured 8.3e-4 m/s on rows_fixedwing_rx, the
+# 3 s 1.5 m/s burst from 21 s; back to 2e-5 at the first fix that applies the velocity); that fix's
+# gain puts it on the acceleration (measured 1.1e-3 m/s^2) and on the test's T (3.5e-3 relative).
+# (Over the 810 s runs of benchmarks/bench_outliers.py's fault plan, not run here, the fixed-wing's
+# 10-20 s coasts reach 7e-3 m/s and 7e-2 m with every decision the same.)
+TOL_COAST: dict[str, float] = {"vel_mps": 3e-3, "acc_mps2": 5e-3, "gps_T_rel": 1e-2}
+# IGG-III: a weight near k1 is steep, w = (k0/s)((k1 - s)/(k1 - k0))^2, so a row at s = 2.95
+# (w = 0.002) takes R / w with the float32 rounding of s amplified ~40x: measured on igg3_car 1e-4
+# m/s, 3e-4 m/s^2, 3e-4 relative on P (70 s; 6.3e-4 m/s, 7e-4 on P at 82.8 s of a 90 s run), and
+# through the long position fault, whose N rows take w = 0.001-0.02 fix after fix, 2.1e-3 on the T
+# of 63.5 s (2.2730 vs 2.2683); each back to the plain cases' level a few fixes later.
+TOL_IGG: dict[str, float] = {"vel_mps": 3e-3, "acc_mps2": 2e-3, "cs_var_rel": 3e-3, "gps_T_rel": 6e-3}
+# AKF: Q scaled by q_scale = clamp(log2(alpha + 1)), alpha = mean(window of nu^T nu - tr(R)) /
+# tr(H P H^T): a difference of two terms of the size of R, which float32 cancels; the scaled Q moves
+# P and the gains (measured on akf_car_cs 1.1e-4 relative on the CS P and 4.5e-5 m/s^2; over 90 s,
+# at the braking at 66-69 s, 2.1e-4 and 1.75e-4 m/s^2, 5e-6 m/s^2 away from it; no decision differs).
+TOL_AKF: dict[str, float] = {"acc_mps2": 1e-3, "cs_var_rel": 1e-3}
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -85,7 +176,119 @@ CASES: dict[str, Case] = {
     "static": Case("static", "ground", 60.0, {"roll_deg": 5.0, "pitch_deg": -3.0, "yaw_deg": 40.0}),
     # Constant velocity from t = 0 (a car never at rest, aligned while moving straight).
     "steady_car": Case("steady", "ground", 60.0, {"vehicle": "car", "speed_mps": 15.0}),
+    # Robust modes (ALGORITHMS.md 5) at the navigation level under GNSS faults: fuzzy rows (the N/E
+    # pair, coasting, the IMU-aided test and its exception, flagged fixes, the velocity step test)
+    # on the car and the fixed-wing, with and without the receiver model; each other mode once.
+    "rows_car": Case(
+        "car_accel_brake", "ground", 90.0, profile="fuzzy-rows", gnss_faults=CAR_FAULTS, tol=TOL_COAST
+    ),
+    "rows_car_rx": Case(
+        "car_accel_brake",
+        "ground",
+        90.0,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_FAULTS,
+        tol=TOL_COAST,
+    ),
+    "rows_fixedwing": Case(
+        "fixedwing_turns",
+        "fixedwing",
+        90.0,
+        profile="fuzzy-rows",
+        gnss_faults=FIXEDWING_FAULTS,
+        tol=TOL_COAST,
+    ),
+    "rows_fixedwing_rx": Case(
+        "fixedwing_turns",
+        "fixedwing",
+        90.0,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=FIXEDWING_FAULTS,
+        tol=TOL_COAST,
+    ),
+    "rows_car_stop": Case(
+        "car_accel_brake",
+        "ground",
+        68.0,
+        {"stop_s": 25.0},
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_STOP_FAULTS,
+        tol=TOL_COAST,
+    ),
+    "rows_outage_fixedwing": Case(
+        "gps_outage",
+        "fixedwing",
+        70.0,
+        {"vehicle": "fixedwing", "gps_outages": ((25.0, 55.0),)},
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=OUTAGE_FAULTS,
+        tol=TOL_COAST,
+    ),
+    "fta_car": Case("car_accel_brake", "ground", 70.0, profile="fta", gnss_faults=CAR_FAULTS),
+    "akf_car": Case("car_accel_brake", "ground", 30.0, profile="akf", gnss_faults=CAR_FAULTS),
+    # AKF on the CS axes alone (the attitude filter plain)
+    "akf_car_cs": Case(
+        "car_accel_brake", "ground", 70.0, profile="akf", gnss_faults=CAR_FAULTS, cs_only=True, tol=TOL_AKF
+    ),
+    "fuzzy_car": Case("car_accel_brake", "ground", 70.0, profile="fuzzy", gnss_faults=CAR_FAULTS),
+    "fuzzy_inflate_car": Case(
+        "car_accel_brake", "ground", 70.0, profile="fuzzy-inflate", gnss_faults=CAR_FAULTS
+    ),
+    # The attitude filter's fuzzy detector rejecting roll/pitch observations (tilted specific force;
+    # the CS axes on their own test, gps_test_imu 0, so that the IMU fault flags no fix): a rejected
+    # observation is made, not skipped (golden/nav.py, choice 13).
+    "fuzzy_car_tilt_blips": Case(
+        "car_accel_brake",
+        "ground",
+        40.0,
+        overrides={"gps_test_imu": 0},
+        profile="fuzzy",
+        tilt_blips=(15.0, 22.0, 35.0),
+    ),
+    "igg3_car": Case("car_accel_brake", "ground", 70.0, profile="igg3", gnss_faults=CAR_FAULTS, tol=TOL_IGG),
 }
+
+
+def _with_gnss_faults(rec: Recording, faults: tuple[tuple[float, ...], ...]) -> Recording:
+    """A copy with position and velocity offsets added to the fixes valid in each fault window (the
+    position moved on a sphere: both sides read the same integers, exactness does not matter)."""
+    gn = rec.gnss.copy()
+    t = gn["t_us"].astype(np.int64) * 1e-6
+    for t0, t1, p_m, v_mps, az_deg, *down in faults:
+        sel = (t >= t0) & (t < t1)
+        if down:  # (position, velocity) offsets along NED down
+            gn["alt_mm"][sel] -= np.round(down[0] * 1e3).astype(gn["alt_mm"].dtype)
+            gn["vel_ned_mps"][sel, 2] += down[1]
+        u = np.array([math.cos(math.radians(az_deg)), math.sin(math.radians(az_deg))])
+        lat = gn["lat_e7"][sel] * 1e-7
+        dlat = np.degrees(p_m * u[0] / 6378137.0)
+        dlon = np.degrees(p_m * u[1] / (6378137.0 * np.cos(np.radians(lat))))
+        gn["lat_e7"][sel] = np.round((lat + dlat) * 1e7).astype(gn["lat_e7"].dtype)
+        gn["lon_e7"][sel] = np.round((gn["lon_e7"][sel] * 1e-7 + dlon) * 1e7).astype(gn["lon_e7"].dtype)
+        gn["vel_ned_mps"][sel, 0] += v_mps * u[0]
+        gn["vel_ned_mps"][sel, 1] += v_mps * u[1]
+    v = gn["vel_ned_mps"]
+    gn["speed_mps"] = np.hypot(v[:, 0], v[:, 1])
+    gn["course_rad"] = np.mod(np.arctan2(v[:, 1], v[:, 0]), 2.0 * np.pi)
+    return Recording(rec.name + "+gnss_faults", rec.imu, gn, rec.mag, rec.ref, rec.meta)
+
+
+def _with_tilt_blips(rec: Recording, starts: tuple[float, ...]) -> Recording:
+    """A copy whose specific force is turned by 0.5 rad about body x for 0.8 s from each start: a
+    gravity observation 0.5 rad off in roll with |f| unchanged (no extra R from |g_b| - g), which
+    the attitude filter's robust mode rejects."""
+    imu = rec.imu.copy()
+    t = imu["t_us"].astype(np.int64) * 1e-6
+    c, s = math.cos(0.5), math.sin(0.5)
+    rot = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    for t0 in starts:
+        sel = (t >= t0) & (t < t0 + 0.8)
+        imu["accel_mps2"][sel] = imu["accel_mps2"][sel] @ rot.T
+    return Recording(rec.name + "+tilt_blips", imu, rec.gnss, rec.mag, rec.ref, rec.meta)
 
 
 def _with_nan_velocity(rec: Recording) -> Recording:
@@ -130,6 +333,8 @@ def _with_faults(rec: Recording) -> Recording:
 
 # Golden CsAxisConfig field -> C mca_cs_config_t field where the names differ.
 _CS_NAMES = {"v0_var_m2s2": "v0_var_m2ps2", "a0_var_m2s4": "a0_var_m2ps4"}
+# C robust mode numbers of the golden mode names (mca_robust_config_t.mode).
+_MODE_NUMBERS = {name: int(core.ROBUST_MODES[name]) for name in grobust.MODES}
 # Float32 config values vs float64 ones: a constant such as radians(2)^2 computed in float32
 # may differ from the float64 value rounded to float32 by an ulp or two (eps 6e-8).
 _CFG_RTOL = 3e-7
@@ -139,18 +344,18 @@ def _config_mismatches(golden: Any, c: dict[str, Any], path: str, names: dict[st
     """Field-by-field differences between a golden config dataclass and a C config dict."""
     bad: list[str] = []
     g_names = {names.get(f.name, f.name): f.name for f in fields(golden)}
-    c_names = set(c) - {"robust"}
+    c_names = set(c)
     for extra in sorted(c_names - set(g_names)):
         bad.append(f"{path}.{extra}: in the C config only")
     for extra in sorted(set(g_names) - c_names):
         bad.append(f"{path}.{extra}: in the golden config only")
-    if "robust" in c and c["robust"]["mode"] != 0:
-        # The golden navigation model makes plain section-1 updates only (golden/nav.py, choice 13).
-        bad.append(f"{path}.robust.mode = {c['robust']['mode']}, only plain (0) is modelled")
     for c_name in sorted(c_names & set(g_names)):
         gv, cv = getattr(golden, g_names[c_name]), c[c_name]
-        if isinstance(gv, (gcs.CsAxisConfig, gatt.AttConfig)):
+        if isinstance(gv, (gcs.CsAxisConfig, gatt.AttConfig, grobust.RobustConfig)):
             bad += _config_mismatches(gv, cv, f"{path}.{c_name}", _CS_NAMES)
+        elif isinstance(gv, str):  # the robust mode: a name in the golden model, a number in C
+            if _MODE_NUMBERS.get(gv) != int(cv):
+                bad.append(f"{path}.{c_name}: golden {gv!r} != C {cv!r}")
         elif not math.isclose(float(gv), float(cv), rel_tol=_CFG_RTOL, abs_tol=0.0):
             bad.append(f"{path}.{c_name}: golden {gv!r} != C {cv!r}")
     return bad
@@ -164,9 +369,48 @@ def test_golden_and_c_presets_are_equal_field_by_field(preset: str) -> None:
     assert not bad, "\n".join(bad)
 
 
-def _configs(case: Case) -> tuple[Any, gnav.NavConfig]:
-    c_cfg = core.nav_config(case.preset, **case.overrides)
-    g_cfg = replace(gnav.NavConfig.preset(case.preset), **case.overrides)
+def _golden_override(cfg: Any, name: str, value: Any) -> Any:
+    """``cfg`` with one (dotted) field replaced, as ``core.nav_config`` takes it: nested configs
+    by ``cs_h.robust.mode`` and the robust mode by its C number."""
+    head, _, rest = name.partition(".")
+    if rest:
+        return replace(cfg, **{head: _golden_override(getattr(cfg, head), rest, value)})
+    if isinstance(cfg, grobust.RobustConfig) and head == "mode":
+        value = grobust.MODES[[_MODE_NUMBERS[m] for m in grobust.MODES].index(int(value))]
+    elif isinstance(cfg, gcs.CsAxisConfig) and head in ("coast", "adaptive"):
+        value = bool(value)
+    return replace(cfg, **{head: value})
+
+
+def _case_overrides(case: Case, rec: Recording | None = None) -> dict[str, Any]:
+    """The dotted overrides of a case: its robust profile (at the recording's fix rate), the
+    simulator's receiver model when asked, then its own."""
+    over: dict[str, Any] = {}
+    if case.profile is not None:
+        rate = core.fix_rate_hz(rec) if rec is not None else 5.0
+        over |= {
+            k: v
+            for k, v in core.robust_profile(case.profile, rate).items()
+            if not (case.cs_only and k.startswith("att."))
+        }
+    if case.receiver_model:
+        sp = sim.SimParams()
+        over |= core.receiver_model(
+            sp.gps_pos_white_h_m,
+            sp.gps_pos_white_v_m,
+            sp.gps_pos_sigma_h_m,
+            sp.gps_pos_sigma_v_m,
+            sp.gps_pos_tau_s,
+        )
+    return over | case.overrides
+
+
+def _configs(case: Case, rec: Recording | None = None) -> tuple[Any, gnav.NavConfig]:
+    over = _case_overrides(case, rec)
+    c_cfg = core.nav_config(case.preset, **over)
+    g_cfg = gnav.NavConfig.preset(case.preset)
+    for name, value in over.items():
+        g_cfg = _golden_override(g_cfg, name, value)
     bad = _config_mismatches(g_cfg, core.config_dict(c_cfg), case.preset, {})
     assert not bad, "\n".join(bad)
     return c_cfg, g_cfg
@@ -188,7 +432,11 @@ def _runs(name: str) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
             rec = _with_faults(rec)
         if case.nan_velocity:
             rec = _with_nan_velocity(rec)
-        c_cfg, g_cfg = _configs(case)
+        if case.gnss_faults:
+            rec = _with_gnss_faults(rec, case.gnss_faults)
+        if case.tilt_blips:
+            rec = _with_tilt_blips(rec, case.tilt_blips)
+        c_cfg, g_cfg = _configs(case, rec)
         _RUNS[name] = (core.replay(rec, c_cfg), gnav.run(rec, g_cfg))
     return _RUNS[name]
 
@@ -319,11 +567,22 @@ MAX_DISCRETE: dict[str, int] = {
 
 # Comparisons where the C path disagrees with the spec (reported to the lead; the golden follows
 # ALGORITHMS.md). The C side was not read: each diagnosis is from the outputs and the public API.
+#
+# akf_car once was one: the C scaled only the angle block of the attitude filter's Qd by the AKF
+# q_scale, the spec (then) said its process noise, and the golden model scaled the whole Qd (4.7e-3
+# relative off in att_var by 12 s, a robust decision flipped at the braking). The spec now says the
+# angle block (ALGORITHMS.md 7, with why), and the golden model follows it.
+XFAIL: dict[str, str] = {}
+
+
 def _case_params() -> list:
     # Two cases once found C-side deviations (course observation skipped after a skipped
     # differencing observation; a flagged NaN velocity passed to the C as 0 by core.gnss_to_c);
     # both are fixed and the cases are plain comparisons now.
-    return list(CASES)
+    return [
+        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=XFAIL[n])) if n in XFAIL else n
+        for n in CASES
+    ]
 
 
 @pytest.mark.parametrize("name", _case_params())
@@ -341,5 +600,6 @@ def test_c_matches_golden_step_by_step(name: str) -> None:
     )
     over_d = {k: v for k, v in disc.items() if v > MAX_DISCRETE[k]}
     assert not over_d, f"{name}: discrete differences {over_d} (allowed {MAX_DISCRETE})"
-    over = {k: v for k, v in gaps.items() if not v <= TOL[k]}
-    assert not over, f"{name}: continuous gaps over tolerance {over} (tolerances {TOL})"
+    tol = TOL | CASES[name].tol
+    over = {k: v for k, v in gaps.items() if not v <= tol[k]}
+    assert not over, f"{name}: continuous gaps over tolerance {over} (tolerances {tol})"

@@ -14,12 +14,12 @@ Every function is pure: it returns new values and never modifies its arguments.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from mcahrs.errors import BadConfigError, NonFiniteError
-from mcahrs.golden.robust import kf_update
+from mcahrs.golden.robust import RobustConfig, RobustState, kf_update, robust_update
 
 __all__ = [
     "AttConfig",
@@ -74,10 +74,18 @@ class AttConfig:
     rp_sigma0_rad: float = 0.03  # base std of the roll/pitch observation
     rp_k_dev: float = 1.0  # std added per unit of | |g_b| - g | / g
     max_tilt_obs_rad: float = math.radians(80.0)  # no roll/pitch/yaw observation above this |pitch|
+    # robust mode of the roll/pitch observations (ALGORITHMS.md 5: the attitude filter feeds it
+    # each roll/pitch observation; yaw observations are plain)
+    robust: RobustConfig = field(default_factory=RobustConfig)
 
     def validate(self) -> None:
         """Raise BadConfigError unless every value is finite and > 0, and max tilt < pi/2."""
+        if not isinstance(self.robust, RobustConfig):
+            raise BadConfigError(f"robust must be a RobustConfig, got {self.robust!r}")
+        self.robust.validate()
         for f in fields(self):
+            if f.name == "robust":
+                continue
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
                 raise BadConfigError(f"{f.name} must be a number, got {v!r}")
@@ -188,9 +196,10 @@ def covariance_transition(w: tuple[float, float, float], dt: float) -> np.ndarra
     return F
 
 
-def process_noise_diag(dt: float, cfg: AttConfig) -> np.ndarray:
-    """Step 2: diagonal of Qd = diag(gyro_noise^2 dt I3, gyro_bias_rw^2 dt I3)."""
-    qa = cfg.gyro_noise_rps**2 * dt
+def process_noise_diag(dt: float, cfg: AttConfig, q_scale: float = 1.0) -> np.ndarray:
+    """Step 2: diagonal of Qd = diag(q_scale gyro_noise^2 dt I3, gyro_bias_rw^2 dt I3): the AKF
+    mode's scale (ALGORITHMS.md 5; 1 otherwise) multiplies the angle block only (section 7)."""
+    qa = q_scale * cfg.gyro_noise_rps**2 * dt
     qb = cfg.gyro_bias_rw_rps2**2 * dt
     return np.array([qa, qa, qa, qb, qb, qb])
 
@@ -205,8 +214,10 @@ def propagate(
     gyro: tuple[float, float, float],
     dt: float,
     cfg: AttConfig,
+    q_scale: float = 1.0,
 ) -> tuple[Quat, np.ndarray]:
-    """One IMU sample (ALGORITHMS.md 7, propagation): returns (q, P); b is unchanged.
+    """One IMU sample (ALGORITHMS.md 7, propagation): returns (q, P); b is unchanged. ``q_scale``
+    (the robust memory's AKF scale) multiplies Qd's angle block.
 
     Raises NonFiniteError when the result is not finite (inputs unchanged).
     """
@@ -214,7 +225,7 @@ def propagate(
     q_new = propagate_quat(q, w, dt)
     F = covariance_transition(w, dt)
     P_new = F @ P @ F.T
-    P_new[_DIAG6] += process_noise_diag(dt, cfg)
+    P_new[_DIAG6] += process_noise_diag(dt, cfg, q_scale)
     P_new = 0.5 * (P_new + P_new.T)
     if not (all(math.isfinite(v) for v in q_new) and np.isfinite(P_new).all()):
         raise NonFiniteError("attitude propagation produced a non-finite state")
@@ -285,6 +296,7 @@ class ObsResult:
     P: np.ndarray
     T: float = math.nan
     nu: np.ndarray | None = None
+    rejected: bool = False  # the robust mode rejected the update (made, q/b/P unchanged)
 
 
 def level_only(q: Quat, dtheta: np.ndarray) -> np.ndarray:
@@ -306,14 +318,23 @@ def _update_and_correct(
     nu: np.ndarray,
     r: float,
     level: bool = False,
+    robust: RobustConfig | None = None,
+    state: RobustState | None = None,
 ) -> ObsResult:
     """Section-1 update of dx from 0 with z = nu, then the error-state correction.
 
     level: remove the vertical component of dtheta first (roll/pitch observations, step 7).
-    P is the section-1 result either way. Raises SingularError / NonFiniteError (inputs unchanged).
+    P is the section-1 result either way. With ``robust`` and ``state`` the update is the
+    section-5 one in that mode (``state`` changed in place on success); a rejection is made with
+    q, b, P unchanged. Raises SingularError / NonFiniteError (inputs unchanged).
     """
     m = H.shape[0]
-    dx, P_new, report = kf_update(np.zeros(6), P, H, nu, np.full(m, r))
+    if robust is not None and state is not None:
+        dx, P_new, report = robust_update(np.zeros(6), P, H, nu, np.full(m, r), robust, state)
+        if report.rejected:
+            return ObsResult(True, "", q, b, P, report.T, report.nu, rejected=True)
+    else:
+        dx, P_new, report = kf_update(np.zeros(6), P, H, nu, np.full(m, r))
     if level:
         dx = np.concatenate([level_only(q, dx[:3]), dx[3:]])
     q_new, b_new = correct(q, b, dx)
@@ -332,11 +353,14 @@ def roll_pitch_update(
     r_acc: float,
     g: float,
     cfg: AttConfig,
+    state: RobustState | None = None,
 ) -> ObsResult:
     """Roll/pitch observation at t_d (attitude q_d) carried to now (attitude q), steps 1-7.
 
     f_b: mean specific force at t_d (body); a_n: maneuver acceleration (NED); r_acc: extra
-    variance (rad^2); g: gravity magnitude. Raises SingularError / NonFiniteError.
+    variance (rad^2); g: gravity magnitude. ``state``: the attitude filter's robust memory; the
+    update is then made in ``cfg.robust``'s mode (ALGORITHMS.md 5), plain without it. Raises
+    SingularError / NonFiniteError.
     """
     g_b = gravity_body(f_b, a_n, q_d)  # step 1
     G = float(np.linalg.norm(g_b))
@@ -350,7 +374,8 @@ def roll_pitch_update(
     H = np.zeros((2, 6))  # step 5
     H[:, :3] = euler_rate_rows(phi_d, theta_d) @ delay_transport(q_d, q)
     r = roll_pitch_noise(G, g, r_acc, cfg)  # step 6
-    return _update_and_correct(q, b, P, H, nu, r, level=True)  # step 7
+    robust = cfg.robust if state is not None else None
+    return _update_and_correct(q, b, P, H, nu, r, level=True, robust=robust, state=state)  # step 7
 
 
 # --------------------------------------------------------------------------------------

@@ -45,11 +45,13 @@ against 50-digit mpmath; x = alpha T):
 
 from __future__ import annotations
 
+import copy
 import math
 import numbers
 import operator
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from fractions import Fraction
+from typing import NamedTuple
 
 import numpy as np
 
@@ -61,13 +63,23 @@ from mcahrs.errors import (
     NonFiniteError,
     NotInitError,
 )
-from mcahrs.golden.robust import UpdateReport, kf_update
+from mcahrs.golden.robust import (
+    FUZZY_ROWS,
+    RobustConfig,
+    RobustReport,
+    RobustState,
+    UpdateReport,
+    fuzzy_rows_failed,
+    kf_update,
+    robust_update,
+)
 
 __all__ = [
     "MASK_POS",
     "MASK_VEL",
     "SERIES_TERMS",
     "SERIES_THRESHOLD",
+    "AxisInc",
     "Cs3",
     "CsAxis",
     "CsAxisConfig",
@@ -283,6 +295,8 @@ class CsAxisConfig:
     a0_var_m2s4: float = 1.0  # initial variance of a
     dt_max_s: float = 10.0  # longest accepted predict step
     coast: bool = False  # coast on the IMU after an update that left the velocity row out (predict_coasting)
+    # the robust mode of the axis' GPS updates (ALGORITHMS.md 5; Cs3.predict_aided / update_robust)
+    robust: RobustConfig = field(default_factory=RobustConfig)
 
     @classmethod
     def horizontal(cls) -> CsAxisConfig:
@@ -312,8 +326,11 @@ class CsAxisConfig:
         for flag in ("adaptive", "coast"):
             if getattr(self, flag) not in (0, 1):  # True/False compare equal to 1/0
                 raise BadConfigError(f"{flag} must be 0 or 1, got {getattr(self, flag)!r}")
+        if not isinstance(self.robust, RobustConfig):
+            raise BadConfigError(f"robust must be a RobustConfig, got {self.robust!r}")
+        self.robust.validate()
         for f in fields(self):
-            if f.name in ("adaptive", "coast"):
+            if f.name in ("adaptive", "coast", "robust"):
                 continue
             v = getattr(self, f.name)
             if not isinstance(v, (int, float, np.floating, np.integer)) or isinstance(v, bool):
@@ -381,6 +398,15 @@ class CsAxis:
         self.P = np.zeros((N_STATE, N_STATE))
         self.s2 = math.nan  # set by init()
         self.initialised = False
+        self.clear_robust()
+
+    def clear_robust(self) -> None:
+        """The robust memory and the coasting marks as at start (Cs3.predict_aided, update_robust)."""
+        self.mem = RobustState()  # the robust memory of the axis' GPS updates (ALGORITHMS.md 5)
+        self.out = False  # the last update left the velocity row out or was rejected (coasting, section 2)
+        self.left = False  # the last update left some row out or was rejected (mca_robust_left_out)
+        self.prior: tuple[np.ndarray, np.ndarray] | None = None  # IMU-aided test prior (y, S), next update
+        self.shift = np.zeros(2)  # that prior less the predicted [p + eps_p, v + eps_v]
 
     # -- init ----------------------------------------------------------------------------
     def _initial(self, p0: float, v0: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -399,13 +425,14 @@ class CsAxis:
         self.initialised = True
 
     # -- predict -------------------------------------------------------------------------
-    def _predicted(self, T: float) -> tuple[np.ndarray, np.ndarray, float]:
-        """Pure predict over an already validated T (ALGORITHMS.md 2, predict steps 2-5)."""
+    def _predicted(self, T: float, q_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
+        """Pure predict over an already validated T (ALGORITHMS.md 2, predict steps 2-5); ``q_scale``
+        multiplies Q (the AKF mode's scale, ALGORITHMS.md 5; 1 otherwise)."""
         c = self.cfg
         s2 = maneuver_variance(self.x[2], c)  # step 2-3: abar = x[2] (eq. 16)
         x = cs_mean_transition(c.beta, c.gamma, T) @ self.x  # step 4 (eq. 17)
         phi = cs_transition(c.alpha, c.beta, c.gamma, T)  # step 5
-        Q = cs_process_noise(c.alpha, c.beta, c.gamma, T, s2, c.sigma_p_m, c.sigma_v_mps)
+        Q = q_scale * cs_process_noise(c.alpha, c.beta, c.gamma, T, s2, c.sigma_p_m, c.sigma_v_mps)
         P = phi @ self.P @ phi.T + Q
         P = 0.5 * (P + P.T)
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
@@ -433,13 +460,13 @@ class CsAxis:
         S += acc_var * np.array([[T**4 / 4.0, T**3 / 2.0], [T**3 / 2.0, T**2]])
         return y, S
 
-    def predict_coasting(self, T: float, dp: float, dv: float, acc_var: float) -> float:
+    def predict_coasting(self, T: float, dp: float, dv: float, acc_var: float, q_scale: float = 1.0) -> float:
         """Coasting predict over T (ALGORITHMS.md 2, coasting): p and v move with the IMU's
         increments ``dp`` (position, less the initial velocity's share) and ``dv`` instead of
         the acceleration state, whose mean stays; the covariance propagates with the CS
         transition less its p-a and v-a couplings, and gains the IMU error ``acc_var`` held
         over the interval: acc_var [[T^4/4, T^3/2], [T^3/2, T^2]] on (p, v). The process noise
-        Q is the CS filter's own. Returns s2, as :meth:`predict`.
+        Q is the CS filter's own (times ``q_scale``, the AKF scale). Returns s2, as :meth:`predict`.
         """
         self._require_init()
         t = _check_dt(T, self.cfg.dt_max_s)
@@ -450,7 +477,7 @@ class CsAxis:
         x[1] = self.x[1] + dv
         phi = cs_transition(c.alpha, c.beta, c.gamma, t)
         phi[0, 2] = phi[1, 2] = 0.0  # the IMU, not a, moves p and v
-        Q = cs_process_noise(c.alpha, c.beta, c.gamma, t, s2, c.sigma_p_m, c.sigma_v_mps)
+        Q = q_scale * cs_process_noise(c.alpha, c.beta, c.gamma, t, s2, c.sigma_p_m, c.sigma_v_mps)
         Q[:2, :2] += acc_var * np.array([[t**4 / 4.0, t**3 / 2.0], [t**3 / 2.0, t**2]])
         P = phi @ self.P @ phi.T + Q
         P = 0.5 * (P + P.T)
@@ -494,6 +521,41 @@ class CsAxis:
 
 
 # --------------------------------------------------------------------------------------
+# Robust updates of the three axes, IMU-aided test and coasting (ALGORITHMS.md 2, 3, 5)
+# --------------------------------------------------------------------------------------
+
+
+class AxisInc(NamedTuple):
+    """IMU increments of one axis over a predict interval (ALGORITHMS.md 2, IMU-aided test prior):
+    ``dp``, ``dv``, the IMU acceleration error variance ``qa`` of the test and ``qc`` of a coast."""
+
+    dp: float
+    dv: float
+    qa: float
+    qc: float
+
+
+def _is_fuzzy_rows(cfg: RobustConfig) -> bool:
+    return cfg.mode == "fuzzy" and cfg.fuzzy_reject == FUZZY_ROWS
+
+
+def _predict_aided_axis(ax: CsAxis, t: float, inc: AxisInc | None) -> None:
+    """One axis of :meth:`Cs3.predict_aided` (T validated)."""
+    q_scale = float(ax.mem.q_scale)
+    if inc is None:
+        ax.x, ax.P, ax.s2 = ax._predicted(t, q_scale)
+        ax.prior = None
+        return
+    y, S = ax.aided_prior(t, inc.dp, inc.dv, inc.qa)  # from the posterior, before the predict
+    if ax.cfg.coast and ax.out:
+        ax.predict_coasting(t, inc.dp, inc.dv, inc.qc, q_scale)
+    else:
+        ax.x, ax.P, ax.s2 = ax._predicted(t, q_scale)
+    ax.prior = (y, S)
+    ax.shift = y - np.array([ax.x[0] + ax.x[3], ax.x[1] + ax.x[4]])
+
+
+# --------------------------------------------------------------------------------------
 # Three axes N, E, D (ALGORITHMS.md 3)
 # --------------------------------------------------------------------------------------
 
@@ -525,6 +587,7 @@ class Cs3:
         for ax, (x, P, s2) in zip(self.axes, new, strict=True):
             ax.x, ax.P, ax.s2 = x, P, s2
             ax.initialised = True
+            ax.clear_robust()  # a (re)start clears the memories and the coasting marks (nav.py, choice 17)
 
     def predict(self, T: float) -> np.ndarray:
         """Predict all axes over T (validated once against every axis' dt_max_s).
@@ -566,4 +629,105 @@ class Cs3:
                 continue
             ax.x, ax.P, report = result
             reports.append(report)
+        return reports
+
+    def predict_aided(self, T: float, incs: list[AxisInc | None]) -> None:
+        """Predict all axes over T, each with its IMU increments or None (ALGORITHMS.md 2): an axis
+        with increments keeps the IMU-aided test prior of its next update (from the posterior, before
+        the covariance is predicted) and coasts when it is marked (``coast`` set, the last update left
+        the velocity row out or was rejected); one without them predicts as :meth:`predict` and has no
+        prior. The AKF memory's ``q_scale`` multiplies Q. Nothing changes on an error."""
+        for ax in self.axes:
+            ax._require_init()
+        t = _check_dt(T, min(ax.cfg.dt_max_s for ax in self.axes))
+        saved = [(ax.x, ax.P, ax.s2, ax.prior, ax.shift) for ax in self.axes]
+        try:
+            for ax, inc in zip(self.axes, incs, strict=True):
+                _predict_aided_axis(ax, t, inc)
+        except Exception:
+            for ax, (x, P, s2, prior, shift) in zip(self.axes, saved, strict=True):
+                ax.x, ax.P, ax.s2, ax.prior, ax.shift = x, P, s2, prior, shift
+            raise
+
+    def update_robust(
+        self,
+        z_p: object,
+        z_v: object,
+        r_p: object,
+        r_v: object,
+        mask: object,
+        vel_held: bool = False,
+    ) -> list[RobustReport | None]:
+        """Update all axes in their robust modes (ALGORITHMS.md 3 and 5), checked as :meth:`update`.
+
+        An axis with an IMU-aided prior (:meth:`predict_aided`) tests ``z - y`` with ``S + R`` (its
+        rows of the prior), and consumes the prior; one without tests its own innovation. When N and E
+        both run fuzzy rows and both test position and velocity, each one's plan is made first on its
+        own test (``fuzzy_rows_failed``) and its failing rows go out of the other's update too (the N/E
+        pair), with the velocity rows of both when ``vel_held`` (the velocity step test held the fix,
+        ALGORITHMS.md 8 GPS step 3). After each update the axis is marked ``out`` (coasting) when it was
+        rejected or left its velocity row out, and ``left`` when it was rejected or left any row out;
+        with ``coast`` set, a coast that starts at an aided update starts from the prior
+        (``p``, ``v`` += the prior's shift). Every result is computed before any axis changes.
+        """
+        for ax in self.axes:
+            ax._require_init()
+        masks = [_check_mask(m) for m in _three("mask", mask)]
+        if not any(masks):
+            raise BadMaskError("mask is 0 on all three axes")
+        zp, zv, rp, rv = _three("z_p", z_p), _three("z_v", z_v), _three("r_p", r_p), _three("r_v", r_v)
+        rows = [_measurement_rows(m, zp[i], zv[i], rp[i], rv[i]) if m else None for i, m in enumerate(masks)]
+        tests: list[tuple[np.ndarray, np.ndarray] | None] = []
+        for ax, m, row in zip(self.axes, masks, rows, strict=True):
+            if row is None or ax.prior is None:
+                tests.append(None)
+                continue
+            keep = [k for k, bit in enumerate((MASK_POS, MASK_VEL)) if m & bit]
+            y, S = ax.prior
+            _, z, r = row
+            tests.append((z - y[keep], S[np.ix_(keep, keep)] + np.diag(r)))
+        pair: list[tuple[bool, ...] | None] = [None, None, None]
+        n_ax, e_ax = self.axes[0], self.axes[1]
+        if (
+            _is_fuzzy_rows(n_ax.cfg.robust)
+            and _is_fuzzy_rows(e_ax.cfg.robust)
+            and masks[0] == masks[1] == MASK_POS | MASK_VEL
+            and tests[0] is not None
+            and tests[1] is not None
+        ):
+            failed = [
+                fuzzy_rows_failed(ax.cfg.robust, ax.mem, *tests[i])  # type: ignore[misc]
+                for i, ax in enumerate((n_ax, e_ax))
+            ]
+            held = (False, bool(vel_held))
+            pair[0] = tuple(a or b for a, b in zip(failed[1], held, strict=True))
+            pair[1] = tuple(a or b for a, b in zip(failed[0], held, strict=True))
+        new = []
+        for i, (ax, m, row) in enumerate(zip(self.axes, masks, rows, strict=True)):
+            if row is None:
+                new.append(None)
+                continue
+            H, z, r = row
+            mem = copy.deepcopy(ax.mem)
+            x, P, rep = robust_update(
+                ax.x, ax.P, H, z, r, ax.cfg.robust, mem, test=tests[i], pair_out=pair[i]
+            )
+            k = H.shape[0]
+            # rows left out by this update: the memory counts them (an update that keeps a row sets its
+            # count to 0; a reset clears the memory and applied every row)
+            left_rows = [rep.rejected or mem.n_removed[j] > 0 for j in range(k)]
+            vel_row = k - 1 if m & MASK_VEL else None
+            out = bool(rep.rejected) or (vel_row is not None and left_rows[vel_row])
+            if ax.cfg.coast and out and not ax.out and ax.prior is not None:
+                x = np.array(x)
+                x[:2] += ax.shift  # the coast starts from the IMU-aided prediction
+            new.append((x, P, rep, mem, out, bool(rep.rejected) or any(left_rows)))
+        reports: list[RobustReport | None] = []
+        for ax, result in zip(self.axes, new, strict=True):
+            if result is None:
+                reports.append(None)
+                continue
+            ax.x, ax.P, rep, ax.mem, ax.out, ax.left = result
+            ax.prior = None
+            reports.append(rep)
         return reports

@@ -10,7 +10,8 @@ state unchanged (the one documented exception: ``BadDtError`` from the IMU step 
 the IMU time).
 
 Choices where ALGORITHMS.md leaves room (checked against the spec as of its "Times" and
-"Yaw alignment" paragraphs, and step by step against the C core in
+"Yaw alignment" paragraphs, the robust modes as of its "velocity step test", and step by step
+against the C core in
 tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
@@ -62,14 +63,56 @@ tests/python/test_nav_golden_vs_c.py)
 12. Yaw alignment (ALGORITHMS.md 7): the first yaw observation *made*; one that would be
     skipped (tilt above ``max_tilt_obs``, a history miss for course over ground, speed below
     ``cog_min_speed``) does not align. Once per filter (``reset`` re-arms it).
-13. The robust update modes (ALGORITHMS.md 5) are not modelled here: every navigation update
-    is the plain section-1 update. The IMU-aided test of the CS updates (GPS step 3) is: it
-    decides nothing in plain mode, but its T is the reported ``gps_T``. Nor is GPS step 6's
-    exclusion of flagged fixes: plain mode flags none.
+13. Robust modes (ALGORITHMS.md 5) at the navigation level: each CS axis keeps its own robust
+    memory, coasting mark and IMU-aided prior (``cs.CsAxis.mem``, ``out``, ``left``, ``prior``;
+    ``cs.Cs3.predict_aided`` / ``update_robust``), configured by ``cs_h.robust`` / ``cs_v.robust``;
+    the attitude filter one memory, ``att.robust``, for every roll/pitch observation (GPS step and
+    lost GPS); yaw observations are plain. A roll/pitch observation the robust mode rejects is
+    *made* (status OK, ``rp_T`` its T, counted in ``n_grav_made``): section 8 counts as skipped only
+    an update that fails (the gravity gate, SINGULAR, NONFINITE), and section 5 says a rejection
+    returns OK. The output flags carry each CS axis' alarm after the last fix (``FLAG_ALARM_N <<
+    axis``). The reported ``gps_T`` is each update's tested T.
 14. IMU increments (GPS step 3): ring entries as consecutive (previous end, end] intervals, the
     oldest one only as the start of the next; the interval's end past the newest entry holds the
     newest entry's acceleration for at most ``MCA_HIST_DT_US``; any saturated entry that overlaps
     the interval, or one held, turns the aid off for all axes.
+15. The IMU-aided test's exception (GPS step 3): "the N or E update before left a row out" is the
+    axis' last update rejected, or some row of it left out (``CsAxis.left``); "once any yaw
+    observation was made": a yaw observation or the yaw alignment since the reset.
+16. The AKF ``q_scale`` (section 5, step 3: "applied by the filter to its process noise at its
+    next predict") is the memory's current value, applied at every predict until an update changes
+    it: on a CS axis it multiplies the whole Q of section 2 (Singer block, q44, q55), ordinary or
+    coasting (not the coast's IMU term, not the test prior's S); on the attitude filter Qd's angle
+    block (section 7) at every propagation.
+17. A CS re-initialisation (GPS step 3, ``T > dt_max``) restarts the axes as at home: their robust
+    memories, coasting marks and priors are cleared (the attitude memory and the last flagged fix
+    are kept); the step test's ``n = 0``, and at step 7 the fix's N, E velocity is the anchor when
+    it has one (no update left it out).
+18. Coasting marks (section 2): after each update an axis is ``out`` when it was rejected or left
+    out the velocity row it had (this update's rows: the memory's ``n_removed`` of its rows, which an
+    update that keeps a row sets to 0; a lock-up reset applies every row); an axis not updated
+    (mask 0) keeps its mark, and a predict without increments neither uses nor clears it. The coast's
+    start shift (the prior less the predicted ``[p + eps_p, v + eps_v]``) applies with ``coast`` set,
+    the axis not marked before this update, and a prior.
+19. Flagged fixes (GPS step 6), N and E only: FTA, AKF, fuzzy with ``fuzzy_reject`` 0 or 1:
+    ``detected`` or the tested ``T > chi2_m(0.01)``; IGG-III: rejected, or the velocity row (when
+    present) at weight 0; fuzzy rows: the axis' coasting mark after the update; plain: never. The
+    ``tau_a`` hold is ``t_fix - t_lastflag < tau_a_us`` of ``cs_h`` (the flagged fix itself
+    included), integer us; it holds GPS-step roll/pitch observations only (lost-GPS ones are not
+    fixes), and the course observation is held for the flagged fix alone.
+20. Velocity step test (GPS step 3): it runs with ``cs_h`` in fuzzy rows, N and E both aided (both
+    have increments), N and E velocity in the fix, and an anchor; ``dv``, ``qa``, ``qc`` are N's and
+    E's (the same variances). "It is the return when it fails and [the reverse-step conditions],
+    and, while holding, [the raw step back], otherwise *armed*": with no fix held, the reverse step
+    is the return only when armed. The hold count compared with ``reject_reset_n`` is the one
+    before this fix. A fix neither held, nor the return, nor the first after a hold leaves *armed*
+    as it was. The detectors' ``D`` changes are made before the predict and the updates (so the N/E
+    pair's plans see them). ``v_last`` is the previous accepted fix's velocity (held or not). "The
+    test ran on it": its conditions held, whatever its outcome; otherwise the anchor needs both N
+    and E with the velocity row applied (their coasting marks clear after the update).
+21. The N/E pair (section 5) is formed when N and E both run fuzzy rows, both have a prior and both
+    take position and velocity; each plan is ``robust.fuzzy_rows_failed`` on the axis' memory (read
+    only), and a held fix's velocity rows are added to both pairs.
 """
 
 from __future__ import annotations
@@ -97,13 +140,15 @@ from mcahrs.errors import (
 )
 from mcahrs.golden import attitude as att
 from mcahrs.golden import geo
-from mcahrs.golden.cs import MASK_POS, MASK_VEL, Cs3, CsAxisConfig
+from mcahrs.golden.cs import MASK_POS, MASK_VEL, AxisInc, Cs3, CsAxisConfig
+from mcahrs.golden.robust import FUZZY_ROWS, RobustReport, RobustState, chi2_quantile
 from mcahrs.samples import GNSS_HAS_ALT, GNSS_HAS_VEL_D, GNSS_HAS_VEL_NE, Recording
 
 __all__ = [
     "COMP_CS",
     "COMP_GPS_DIFF",
     "COMP_OFF",
+    "FLAG_ALARM_N",
     "FLAG_ALIGNED",
     "FLAG_GPS_LOST",
     "FLAG_GRAV_SKIPPED",
@@ -141,6 +186,11 @@ FLAG_YAW_UNOBSERVED = 1 << 3
 FLAG_GRAV_SKIPPED = 1 << 4  # last roll/pitch observation attempt was skipped
 FLAG_SATURATED = 1 << 5  # a saturated accelerometer sample has been seen
 FLAG_HIST_MISS = 1 << 6  # last history lookup missed
+FLAG_ALARM_N = 1 << 7  # the N axis' fuzzy alarm after the last fix; << 1: E, << 2: D (ALGORITHMS.md 5)
+
+FLAG_LEVEL = 0.01  # GPS step 6: FTA, AKF and fuzzy flag a fix whose tested T exceeds chi2_m(this)
+STEP_LEVEL_FAIL = 1e-4  # GPS step 3, velocity step test: chi2_2(this) with no fix held, and the raw step
+STEP_LEVEL_HELD = 0.005  # ... chi2_2(this) while fixes are held
 
 G_DEFAULT = 9.80665  # gravity before home when not configured
 
@@ -196,7 +246,8 @@ def _preset_att() -> att.AttConfig:
 
 @dataclass(frozen=True)
 class NavConfig:
-    """Navigation configuration. The plain default is the ground-vehicle preset."""
+    """Navigation configuration. The plain default is the ground-vehicle preset. The robust modes
+    (ALGORITHMS.md 5) are ``cs_h.robust``, ``cs_v.robust`` (and ``coast``) and ``att.robust``."""
 
     cs_h: CsAxisConfig = field(default_factory=_preset_cs_h)  # CS axes N, E
     cs_v: CsAxisConfig = field(default_factory=_preset_cs_v)  # CS axis D
@@ -224,8 +275,8 @@ class NavConfig:
     cog_sigma0_rad: float = 0.05
     gps_test_imu: int = 1  # robust modes test the CS update against the IMU-aided prediction
     imu_acc_sigma_mps2: float = 0.3  # IMU acceleration error std of that prediction
-    # the part of it that persists over a coast (ALGORITHMS.md 2, coasting): the C CS axes' coast
-    # variance; this model does not coast (no robust modes), it carries the configuration
+    # the part of it that persists over a coast (ALGORITHMS.md 2, coasting; GPS step 3): the CS axes'
+    # coast variance (cs_h.coast / cs_v.coast) and the velocity step test's anchor variance
     coast_acc_sigma_mps2: float = 0.15
     # Receiver model (ALGORITHMS.md 8, GPS step 4): > 0, the white part of the position error, R =
     # min(accuracy, white)^2; the rest is the CS GPS-error state's (sigma_p_m, tau_p_s). 0: R = accuracy^2.
@@ -282,8 +333,9 @@ class NavConfig:
             raise BadConfigError(f"comp_mode must be 0, 1 or 2, got {self.comp_mode!r}")
         if self.yaw_source not in (YAW_NONE, YAW_MAG, YAW_COG):
             raise BadConfigError(f"yaw_source must be 0, 1 or 2, got {self.yaw_source!r}")
-        if self.nogps_centripetal not in (0, 1):  # True/False compare equal to 1/0
-            raise BadConfigError(f"nogps_centripetal must be 0 or 1, got {self.nogps_centripetal!r}")
+        for flag in ("nogps_centripetal", "gps_test_imu"):
+            if getattr(self, flag) not in (0, 1):  # True/False compare equal to 1/0
+                raise BadConfigError(f"{flag} must be 0 or 1, got {getattr(self, flag)!r}")
         nonneg = (
             "cs_lag_s",
             "nogps_rp_var_rad2",
@@ -292,8 +344,9 @@ class NavConfig:
             "gps_alt_white_m",
             "coast_acc_sigma_mps2",
         )
+        flags = ("cs_h", "cs_v", "att", "comp_mode", "yaw_source", "nogps_centripetal", "gps_test_imu")
         for f in fields(self):
-            if f.name in ("cs_h", "cs_v", "att", "comp_mode", "yaw_source", "nogps_centripetal"):
+            if f.name in flags:
                 continue
             v = getattr(self, f.name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
@@ -355,6 +408,18 @@ def _finite3(v: Any) -> tuple[float, float, float]:
         return (float(v[0]), float(v[1]), float(v[2]))
     except (TypeError, ValueError) as exc:
         raise BadArgError(f"expected 3 numbers, got {v!r}") from exc
+
+
+@dataclass
+class _StepTest:
+    """State of the velocity step test (ALGORITHMS.md 8, GPS step 3)."""
+
+    v_a: np.ndarray = field(default_factory=lambda: np.zeros(2))  # the anchor velocity, N and E
+    V_a: float = 0.0  # its variance, an axis
+    n: int = 0  # fixes held
+    s0: np.ndarray = field(default_factory=lambda: np.zeros(2))  # the step that started the last hold
+    anchor: bool = False  # v_a exists
+    armed: bool = False  # a return is armed
 
 
 class _Fix(NamedTuple):
@@ -463,6 +528,11 @@ class Nav:
         self.grav_skipped = False
         self.hist_miss = False
         self.saturated_seen = False
+        # robust modes (ALGORITHMS.md 5, 8): the attitude filter's memory of its roll/pitch update
+        # (the CS axes keep theirs), the last flagged fix (GPS step 6), the velocity step test
+        self.att_mem = RobustState()
+        self.t_flag_us: int | None = None
+        self.vst = _StepTest()
 
     # ----------------------------------------------------------------------------------
     # IMU step
@@ -491,7 +561,8 @@ class Nav:
             self.saturated_seen = self.saturated_seen or sat
             self.t_imu_us = t_us
             return
-        q, P = att.propagate(self.q, self.b, self.P, w, dt, self.cfg.att)  # step 5 (may raise)
+        # step 5 (may raise); the AKF scale of the roll/pitch memory multiplies Qd (choice 16)
+        q, P = att.propagate(self.q, self.b, self.P, w, dt, self.cfg.att, self.att_mem.q_scale)
         self.q, self.P = q, P
         self.t_imu_us = t_us
         self.saturated_seen = self.saturated_seen or sat
@@ -594,6 +665,7 @@ class Nav:
         if entry is None or entry.saturated:
             self._grav_skip(hist_miss=entry is None)
             return
+        mem = copy.deepcopy(self.att_mem)
         try:
             res = att.roll_pitch_update(
                 self.q,
@@ -605,6 +677,7 @@ class Nav:
                 r_acc,
                 self.g,
                 self.cfg.att,
+                mem,
             )
         except McaError:  # choice 4
             self._grav_skip()
@@ -612,6 +685,7 @@ class Nav:
         if not res.made:
             self._grav_skip()
             return
+        self.att_mem = mem
         self.q, self.b, self.P = res.q, res.b, res.P
         self.rp_T = res.T
         self.n_grav_made += 1
@@ -741,43 +815,44 @@ class Nav:
         T_us = fx.t_us - self.t_lastfix_us
         T = T_us * 1e-6
         if T_us > self._cs_dt_max_us:
-            # Re-initialise instead; compensation acceleration 0; steps 4-6 skipped.
+            # Re-initialise instead (memories and coasting marks cleared, choice 17); compensation
+            # acceleration 0; steps 4-6 skipped; the step test's hold ends.
             self.cs.init(ned, v0)
             self.a_last = (0.0, 0.0, 0.0)
+            self.vst.n = 0
+            self._step7_anchor(fx, has_ne, False, has_ne)
             self._remember_fix(fx, has_vel)
             return
-        aids = self._aided_priors(fx.t_us, T)
+        incs = self._aided_increments(fx.t_us, T)
         # Step 4 inputs: N, E position (+ velocity); D position with altitude on a 3-D fix, velocity.
         vel_mask = MASK_VEL if has_ne else 0
         d_mask = (MASK_POS if (has_alt and fx.fix_type >= 3) else 0) | (MASK_VEL if has_d else 0)
         masks = (MASK_POS | vel_mask, MASK_POS | vel_mask, d_mask)
         r_h = _white(fx.h_acc, self.cfg.gps_pos_white_m) ** 2
         r_p = (r_h, r_h, _white(fx.v_acc, self.cfg.gps_alt_white_m) ** 2)
-        saved = [(ax.x, ax.P, ax.s2, ax.initialised) for ax in self.cs.axes]
+        saved = copy.deepcopy((self.cs, self.vst))
         try:
-            self.cs.predict(T)
-            # Step 4: CS update.
-            reports = self.cs.update(z_p=ned, z_v=fx.vel, r_p=r_p, r_v=(fx.s_acc**2,) * 3, mask=masks)
+            # Step 3's velocity step test (it may hold the fix and move the N, E detectors' D), then
+            # the predict, plain or coasting, with the IMU-aided test priors.
+            ran, held = self._velocity_step_test(fx, T, incs, has_ne)
+            self.cs.predict_aided(T, incs)
+            # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5).
+            reports = self.cs.update_robust(
+                z_p=ned, z_v=fx.vel, r_p=r_p, r_v=(fx.s_acc**2,) * 3, mask=masks, vel_held=held
+            )
         except McaError:
-            for ax, (x, P, s2, ini) in zip(self.cs.axes, saved, strict=True):
-                ax.x, ax.P, ax.s2, ax.initialised = x, P, s2, ini
+            self.cs, self.vst = saved
             raise
-        # From here on nothing raises. The reported T is the tested one (GPS step 3).
+        # From here on nothing raises. The reported T is the tested one (GPS step 3, section 5).
         for i, rep in enumerate(reports):
-            if rep is None:
-                continue
-            aid = aids[i]
-            if aid is None:
+            if rep is not None:
                 self.gps_T[i] = rep.T
-                continue
-            y, S = aid
-            rows = [k for k, bit in enumerate((MASK_POS, MASK_VEL)) if masks[i] & bit]
-            z = np.array([ned[i], fx.vel[i]])[rows]
-            r = np.array([r_p[i], fx.s_acc**2])[rows]
-            nu = z - y[rows]
-            C = S[np.ix_(rows, rows)] + np.diag(r)
-            self.gps_T[i] = float(nu @ np.linalg.solve(C, nu))
         a_cs = tuple(float(ax.x[2]) for ax in self.cs.axes)
+        flagged = any(self._flags_fix(i, reports[i], masks[i]) for i in (0, 1))
+        if flagged:
+            self.t_flag_us = fx.t_us
+        # within tau_a (horizontal CS) of the last flagged fix, this one included: no roll/pitch
+        rp_held = self.t_flag_us is not None and fx.t_us - self.t_flag_us < self._tau_a_us[0]
 
         # Step 5: compensation acceleration.
         usable = True
@@ -799,9 +874,9 @@ class Nav:
             # A yaw error d psi turns the horizontal compensation by d psi (body z as yaw axis).
             r_acc += (a_n[0] ** 2 + a_n[1] ** 2) * float(self.P[2, 2]) / self.g**2
 
-        # Step 6: observations.
+        # Step 6: observations (none of a flagged fix's, no roll/pitch within tau_a of one).
         if self.aligned:
-            if not usable:
+            if not usable or rp_held:
                 self._grav_skip()
             else:
                 if cfg.comp_mode == COMP_CS:
@@ -811,12 +886,91 @@ class Nav:
                 else:
                     entry = self.hist[-1] if self.hist else None
                 self._roll_pitch(entry, a_n, r_acc, None)
-            if cfg.yaw_source == YAW_COG and has_ne:
+            if cfg.yaw_source == YAW_COG and has_ne and not flagged:
                 self._course_observation(fx)
 
         # Step 7.
         self.a_last = a_cs  # type: ignore[assignment]
+        applied_v = has_ne and not (self.cs.axes[0].out or self.cs.axes[1].out)
+        self._step7_anchor(fx, has_ne, held, ran or applied_v)
         self._remember_fix(fx, has_vel)
+
+    def _flags_fix(self, axis: int, rep: RobustReport | None, mask: int) -> bool:
+        """GPS step 6: the robust mode of a horizontal axis' update flagged the fix."""
+        if rep is None:
+            return False
+        rc = self.cs.axes[axis].cfg.robust
+        if rc.mode == "plain":
+            return False
+        if rc.mode == "igg3":  # the velocity row removed (weight 0), or the update rejected
+            return bool(rep.rejected) or bool(mask & MASK_VEL and float(rep.w[rep.m - 1]) == 0.0)
+        if rc.mode == "fuzzy" and rc.fuzzy_reject == FUZZY_ROWS:  # the axis coasts after the update
+            return bool(self.cs.axes[axis].out)
+        return bool(rep.detected) or rep.T > chi2_quantile(FLAG_LEVEL, rep.m)
+
+    def _velocity_step_test(
+        self, fx: _Fix, T: float, incs: list[AxisInc | None], has_ne: bool
+    ) -> tuple[bool, bool]:
+        """The velocity step test of GPS step 3 (ALGORITHMS.md 8): (the test ran, the fix is held).
+        A held fix leaves the N and E velocity rows out (Cs3.update_robust's ``vel_held``) and
+        raises both detectors' D to at least 2; the return, or the first fix after a hold, not armed,
+        lowers them to at most 1."""
+        st = self.vst
+        cfg_h = self.cfg.cs_h
+        n_ax, e_ax = self.cs.axes[0], self.cs.axes[1]
+        inc_n, inc_e = incs[0], incs[1]
+        rows_mode = cfg_h.robust.mode == "fuzzy" and cfg_h.robust.fuzzy_reject == FUZZY_ROWS
+        if not (rows_mode and inc_n is not None and inc_e is not None and has_ne and st.anchor):
+            st.n = 0
+            return False, False
+        dv = np.array([inc_n.dv, inc_e.dv])
+        qa, qc = inc_n.qa, inc_n.qc  # the same on N and E
+        v_fix = np.array(fx.vel[:2])
+        v_last = np.array(self.prev_vel[:2])
+        v_p = st.v_a + dv
+        s = v_fix - v_p
+        r = v_fix - v_last - dv
+        s_acc2 = fx.s_acc**2
+        C = s_acc2 + st.V_a + qa * T * T
+        C_r = 2.0 * s_acc2 + qa * T * T
+        k = chi2_quantile(STEP_LEVEL_FAIL if st.n == 0 else STEP_LEVEL_HELD, 2)
+        ss, rr = float(s @ s), float(r @ r)
+        fails = ss > k * C
+        holding = st.n > 0
+        u, q = (r, rr) if holding else (s, ss)
+        s0n = float(st.s0 @ st.s0)
+        us0 = float(u @ st.s0)
+        reverse = us0 < 0.0 and us0 * us0 >= 0.5 * q * s0n and 0.25 * s0n <= q <= 2.25 * s0n
+        stepped_back = rr > chi2_quantile(STEP_LEVEL_FAIL, 2) * C_r
+        is_return = fails and reverse and (stepped_back if holding else st.armed)
+        if fails and not is_return and st.n < cfg_h.robust.reject_reset_n:
+            if st.n == 0:
+                st.s0 = s
+                st.armed = False
+            st.v_a = v_p
+            st.V_a += qc * T * T
+            st.n += 1
+            for ax in (n_ax, e_ax):
+                ax.mem.d_k = max(ax.mem.d_k, 2.0)
+            return True, True
+        if is_return or holding:
+            st.armed = (not is_return) and rr <= k * C_r
+            if not st.armed:
+                for ax in (n_ax, e_ax):
+                    ax.mem.d_k = min(ax.mem.d_k, 1.0)
+        st.n = 0
+        return True, False
+
+    def _step7_anchor(self, fx: _Fix, has_ne: bool, held: bool, ok: bool) -> None:
+        """GPS step 7 for the velocity step test: unless the fix was held, its N, E velocity is the
+        anchor, with variance s_acc^2, when it has one and ``ok`` (the test ran on it, or both N and
+        E applied their velocity)."""
+        if held:
+            return
+        st = self.vst
+        st.v_a = np.array(fx.vel[:2])
+        st.V_a = fx.s_acc**2
+        st.anchor = has_ne and ok
 
     def _imu_increments(self, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Velocity and position increments (dv = int a, dp = int int a) over (t0, t1] from the
@@ -848,26 +1002,32 @@ class Nav:
             add(last, t1 - last.t_us)
         return dp, dv
 
-    def _aided_priors(self, t_fix: int, T: float) -> list[tuple[np.ndarray, np.ndarray] | None]:
-        """Per CS axis the IMU-aided test prior (y, S) of this fix, or None (GPS step 3)."""
+    def _aided_increments(self, t_fix: int, T: float) -> list[AxisInc | None]:
+        """Per CS axis the IMU increments and error variances of this fix's predict, or None
+        (ALGORITHMS.md 8, GPS step 3; the exception for coasting axes included)."""
         cfg = self.cfg
-        none: list[tuple[np.ndarray, np.ndarray] | None] = [None, None, None]
+        none: list[AxisInc | None] = [None, None, None]
         if not (cfg.gps_test_imu and self.aligned) or self.t_lastfix_us is None:
             return none
         inc = self._imu_increments(self.t_lastfix_us, t_fix)
         if inc is None:
             return none
         dp, dv = inc
-        s2 = cfg.imu_acc_sigma_mps2**2
         ah2 = (dv[0] ** 2 + dv[1] ** 2) / T**2
-        var_h = s2 + self.g**2 * (self.P[0, 0] + self.P[1, 1]) + ah2 * self.P[2, 2]
-        aid_h = not (self.flags() & FLAG_YAW_UNOBSERVED) and math.isfinite(var_h)
-        return [
-            self.cs.axes[i].aided_prior(T, float(dp[i]), float(dv[i]), var_h if i < 2 else s2)
-            if (i == 2 or aid_h)
-            else None
-            for i in range(3)
+        att_h = self.g**2 * (self.P[0, 0] + self.P[1, 1]) + ah2 * self.P[2, 2]
+        qa_v, qc_v = cfg.imu_acc_sigma_mps2**2, cfg.coast_acc_sigma_mps2**2
+        qa_h, qc_h = qa_v + att_h, qc_v + att_h
+        n_ax, e_ax = self.cs.axes[0], self.cs.axes[1]
+        # yaw observed; or, coasting configured and N or E left a row out, any yaw observation made
+        yaw_ok = not (self.flags() & FLAG_YAW_UNOBSERVED) or (
+            bool(cfg.cs_h.coast) and (n_ax.left or e_ax.left) and self.t_yaw_us is not None
+        )
+        aid_h = yaw_ok and math.isfinite(qa_h + qc_h)
+        out: list[AxisInc | None] = [
+            AxisInc(float(dp[i]), float(dv[i]), float(qa_h), float(qc_h)) if aid_h else None for i in (0, 1)
         ]
+        out.append(AxisInc(float(dp[2]), float(dv[2]), qa_v, qc_v))
+        return out
 
     def _remember_fix(self, fx: _Fix, has_vel: tuple[bool, bool, bool]) -> None:
         self.t_lastfix_us = fx.t_us
@@ -933,6 +1093,9 @@ class Nav:
             f |= FLAG_SATURATED
         if self.hist_miss:
             f |= FLAG_HIST_MISS
+        for i, ax in enumerate(self.cs.axes):  # each CS axis' alarm after the last fix
+            if ax.mem.alarm:
+                f |= FLAG_ALARM_N << i
         return f
 
     def _cs_extrapolated(self) -> tuple[list[float], list[float], list[float]]:
