@@ -644,7 +644,7 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], con
 
 static float sigma_or(float s, float dflt)
 {
-    return (isfinite(s) && s > 0.0f) ? s : dflt;
+    return mca_positive(s) ? s : dflt;
 }
 
 mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float alt_sigma_m, float vel_sigma_mps,
@@ -678,7 +678,10 @@ mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float
     view->h_acc_m = sigma_or(fix->h_acc_m, pos_sigma_m);
     view->v_acc_m = sigma_or(fix->v_acc_m, alt_sigma_m);
     view->s_acc_mps = sigma_or(fix->s_acc_mps, vel_sigma_mps);
-    return MCA_OK;
+    return (mca_positive(view->h_acc_m * view->h_acc_m) && mca_positive(view->v_acc_m * view->v_acc_m) &&
+            mca_positive(view->s_acc_mps * view->s_acc_mps))
+               ? MCA_OK
+               : MCA_ERR_BAD_ARG;
 }
 
 /* GPS step 4, the receiver model: the part of a position std that is white, R's; the CS
@@ -705,15 +708,10 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
                                        (has_vd ? MCA_CS_VEL : 0u))};
     const float rp[3] = {h_acc * h_acc, h_acc * h_acc, v_acc * v_acc};
     const float rv[3] = {s_acc * s_acc, s_acc * s_acc, s_acc * s_acc};
-    /* The values were checked where the fix entered (mca_gps_fix_read) and the masks are well
-     * formed; what is left of mca_cs3_update's checks is that a variance in use is finite and
-     * > 0 (an accuracy over ~1.8e19 or under ~1e-19 squares out of range). Checked before the
-     * predict: a fix refused after it would leave the CS at the fix time while t_lastfix stays,
-     * and the next fix would predict that interval again. */
-    if (!mca_positive(rp[0]) || ((mask[2] & MCA_CS_POS) != 0u && !mca_positive(rp[2])) ||
-        ((has_vne || has_vd) && !mca_positive(rv[0]))) { /* N and E always take their position; */
-        return MCA_ERR_BAD_ARG;                             /* rv is one variance on every axis */
-    }
+    /* The values were checked where the fix entered (mca_gps_fix_read: the accuracies' squares
+     * finite floats > 0; a white part in use is below its accuracy, so its square is finite, and
+     * at worst 0, which the update takes: H P H^T > 0) and the masks are well formed: nothing of
+     * mca_cs3_update's checks is left to make. */
     cs_predict(nav, fix->t_us, t, fv);
     /* No report (T is read from the axis memory; N and E can then share one covariance
      * update). An axis can fail only numerically, and then it is left unchanged
@@ -866,9 +864,6 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             cs_start(nav, ned, fv.vel_ned_mps);
         } else {
             st = gps_cs(nav, fix, &fv, ned, t);
-            if (st == MCA_ERR_BAD_ARG) {
-                return st; /* refused before the predict: nothing changed */
-            }
             /* an axis update that failed numerically (SINGULAR, NONFINITE) left that axis as
              * predicted: the CS is at the fix time all the same (GPS step 4), but the fix makes
              * no attitude observation */

@@ -583,6 +583,8 @@ def test_bad_input_raises_and_keeps_state() -> None:
         ins.gps(t, 305_000_000, 1_143_000_000, 50_000, [0.0, nan, 0.0])
     with pytest.raises(errors.RangeError):  # over MCA_FIX_VEL_MAX_MPS, past any receiver's limit
         ins.gps(t, 305_000_000, 1_143_000_000, 50_000, [0.0, 0.0, -1000.5])
+    with pytest.raises(errors.BadArgError):  # an accuracy whose square is no float > 0
+        ins.gps(t, 305_000_000, 1_143_000_000, 50_000, [0.0, 0.0, 0.0], h_acc_m=1e20)
     with pytest.raises(errors.TimeBackwardsError):
         ins.gps(t - 1_000_000, 305_000_000, 1_143_000_000, 50_000)
     with pytest.raises(errors.NonFiniteError):

@@ -163,6 +163,8 @@ def test_bad_gps_input_returns_status_and_keeps_state() -> None:
     for acc in ({"h_acc_m": 1e30}, {"v_acc_m": 3e19}, {"s_acc_mps": 1e-30}):
         with pytest.raises(errors.BadArgError):
             nav.gps(t, **good, **acc)
+    with pytest.raises(errors.BadArgError):  # checked where the fix enters, in use or not (no altitude)
+        nav.gps(t, **{**good, "alt_mm": None}, v_acc_m=1e20)
     assert state_bytes(nav) == before
     # missing fields are not errors: no altitude, no velocity, no accuracy figures
     nav.gps(t, 305_000_030, 1_143_000_030, None, None)
