@@ -161,18 +161,18 @@ static void align(mca_nav_t *nav, const float f_mean[3], const float bias[3], fl
 static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f[3], uint32_t dt_us)
 {
     for (size_t i = 0; i < 3u; ++i) {
-        nav->init_f_sum[i] += f[i];
-        nav->init_w_sum[i] += w[i];
-        nav->init_f_all[i] += f[i];
+        nav->u.init.f_sum[i] += f[i];
+        nav->u.init.w_sum[i] += w[i];
+        nav->u.init.f_all[i] += f[i];
     }
-    nav->init_n++;
-    nav->init_n_all++;
-    nav->init_win_us += dt_us;
+    nav->u.init.n++;
+    nav->u.init.n_all++;
+    nav->u.init.win_us += dt_us;
     const float zero[3] = {0.0f, 0.0f, 0.0f};
-    if (nav->init_win_us >= us(nav->cfg.init_still_s)) {
-        const float inv = 1.0f / (float)nav->init_n;
-        const float fm[3] = {nav->init_f_sum[0] * inv, nav->init_f_sum[1] * inv, nav->init_f_sum[2] * inv};
-        const float wm[3] = {nav->init_w_sum[0] * inv, nav->init_w_sum[1] * inv, nav->init_w_sum[2] * inv};
+    if (nav->u.init.win_us >= us(nav->cfg.init_still_s)) {
+        const float inv = 1.0f / (float)nav->u.init.n;
+        const float fm[3] = {nav->u.init.f_sum[0] * inv, nav->u.init.f_sum[1] * inv, nav->u.init.f_sum[2] * inv};
+        const float wm[3] = {nav->u.init.w_sum[0] * inv, nav->u.init.w_sum[1] * inv, nav->u.init.w_sum[2] * inv};
         /* moving by GPS: the newest fix's horizontal speed (ALGORITHMS.md 8, IMU step 4) */
         const int moving = nav->have_fix && (nav->prev_vel_mask & 3u) == 3u &&
                            nav->vel_prev[0] * nav->vel_prev[0] + nav->vel_prev[1] * nav->vel_prev[1] > 0.25f;
@@ -182,15 +182,15 @@ static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f
             return;
         }
         for (size_t i = 0; i < 3u; ++i) { /* not still: the next block */
-            nav->init_f_sum[i] = 0.0f;
-            nav->init_w_sum[i] = 0.0f;
+            nav->u.init.f_sum[i] = 0.0f;
+            nav->u.init.w_sum[i] = 0.0f;
         }
-        nav->init_n = 0u;
-        nav->init_win_us = 0u;
+        nav->u.init.n = 0u;
+        nav->u.init.win_us = 0u;
     }
     if (nav->t_imu_us - nav->t_first_us >= us(nav->cfg.init_timeout_s)) {
-        const float inv = 1.0f / (float)nav->init_n_all;
-        const float fa[3] = {nav->init_f_all[0] * inv, nav->init_f_all[1] * inv, nav->init_f_all[2] * inv};
+        const float inv = 1.0f / (float)nav->u.init.n_all;
+        const float fa[3] = {nav->u.init.f_all[0] * inv, nav->u.init.f_all[1] * inv, nav->u.init.f_all[2] * inv};
         align(nav, fa, zero, 25.0f * nav->cfg.att.att0_var_rad2);
     }
 }
@@ -415,7 +415,8 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
     return 1;
 }
 
-enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u }; /* mca_nav_t.step_flags */
+/* mca_nav_t.step_flags; PRE: the step test ran on the last fix (so u.step.pre is its) */
+enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u, STEP_PRE = 8u };
 
 /* The fuzzy memories' D of N and E raised to at least v (up) or lowered to at most v. */
 MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
@@ -428,50 +429,63 @@ MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
 
 /* The velocity step test (ALGORITHMS.md 8, GPS step 3): the fix's N/E velocity against the
  * anchor carried on by the IMU increments. A step holds the anchor and leaves both velocity
- * rows out (the N/E pair's rows, with the alarm) until the fix passes again, steps back, or
- * the whole-update guard's count of fixes has passed. */
+ * rows out (the N/E pair's rows, with the alarm) until the fix passes again (and is nearer the
+ * anchor than the held step), steps back, or the whole-update guard's count of fixes has
+ * passed. */
 MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, const mca_cs_inc_t inc[3], float var_h,
                                    float coast_h, float t, uint8_t hold)
 {
     const float *v = fv->vel_ned_mps;
-    float pred[2], s[2], e2 = 0.0f, r2 = 0.0f, dot = 0.0f, n0 = 0.0f;
+    float pred[2], s[2], e2 = 0.0f, r2 = 0.0f, dot = 0.0f, n0 = 0.0f, ds = 0.0f, pp = 0.0f;
     for (size_t i = 0; i < 2u; ++i) {
-        pred[i] = nav->step_v[i] + inc[i].dv_mps;
+        const float ep = v[i] - nav->u.step.pre[i] - inc[i].dv_mps;
+        pp += ep * ep;
+        pred[i] = nav->u.step.v[i] + inc[i].dv_mps;
         s[i] = v[i] - pred[i];
         const float r = v[i] - nav->vel_prev[i] - inc[i].dv_mps; /* the raw step from the last fix */
         e2 += s[i] * s[i];
         r2 += r * r;
-        dot += (hold != 0u ? r : s[i]) * nav->step_s0[i];
-        n0 += nav->step_s0[i] * nav->step_s0[i];
+        dot += (hold != 0u ? r : s[i]) * nav->u.step.s0[i];
+        ds += s[i] * nav->u.step.s0[i];
+        n0 += nav->u.step.s0[i] * nav->u.step.s0[i];
     }
     const float g4 = mca_chi2_quantile(2u, MCA_CHI2_1E4);
     const float g = hold != 0u ? mca_chi2_quantile(2u, MCA_CHI2_5E3) : g4;
     const float c_raw = 2.0f * fv->s_acc_mps * fv->s_acc_mps + var_h * t * t;
-    const int fail = e2 > g * (fv->s_acc_mps * fv->s_acc_mps + nav->step_var + var_h * t * t);
+    const float c = fv->s_acc_mps * fv->s_acc_mps + nav->u.step.var + var_h * t * t;
+    /* No fix held: a step from an anchor that the anchor before it (carried on) agrees with is
+     * the anchor's, a spike that passed its own test, not this fix's. Holding: a fix nearer the
+     * held step than the anchor (s . s0 >= |s0|^2 / 2) still carries the fault, however the
+     * anchor's variance has grown. */
+    const int fail = e2 > g * c ? hold != 0u || (nav->step_flags & STEP_PRE) == 0u || pp > g * c
+                                : hold != 0u && 2.0f * ds >= n0;
     /* the return: the reverse of the step that started the hold, within it the raw step, after a
      * release with the fault still in the anchor's */
     const float q = hold != 0u ? r2 : e2;
-    const int ret = fail && dot < 0.0f && dot * dot >= 0.5f * q * n0 && q >= 0.25f * n0 && q <= 2.25f * n0 &&
+    const int ret = fail && dot < 0.0f && dot * dot >= 0.5f * q * n0 && fabsf(q - 1.25f * n0) <= n0 &&
                     (hold != 0u ? r2 > g4 * c_raw : (nav->step_flags & STEP_ARMED) != 0u);
     nav->step_flags |= STEP_TESTED;
     if (fail && !ret && hold < nav->cs.axis[0].cfg.robust.reject_reset_n) {
         if (hold == 0u) {
-            mca_copyf(nav->step_s0, s, 2u);
+            mca_copyf(nav->u.step.s0, s, 2u);
             nav->step_flags &= (uint8_t)~STEP_ARMED;
         }
-        mca_copyf(nav->step_v, pred, 2u);
-        nav->step_var += coast_h * t * t;
+        mca_copyf(nav->u.step.v, pred, 2u);
+        nav->u.step.var += coast_h * t * t;
         nav->step_hold = (uint8_t)(hold + 1u);
         nav->cs.axis[0].rs.started |= MCA_CS_VEL;
         nav->cs.axis[1].rs.started |= MCA_CS_VEL;
         step_dk(nav, 2.0f, 1);
-    } else if (ret || hold != 0u) {
-        /* a release with the fault still in (no raw step) arms the return; else the fault ended */
-        const int armed = !ret && r2 <= g * c_raw;
-        nav->step_flags = (uint8_t)(armed ? nav->step_flags | STEP_ARMED : nav->step_flags & ~STEP_ARMED);
-        if (!armed) {
-            step_dk(nav, 1.0f, 0);
+    } else {
+        if (ret || hold != 0u) {
+            /* a release with the fault still in (no raw step) arms the return; else the fault ended */
+            const int armed = !ret && r2 <= g * c_raw;
+            nav->step_flags = (uint8_t)(armed ? nav->step_flags | STEP_ARMED : nav->step_flags & ~STEP_ARMED);
+            if (!armed) {
+                step_dk(nav, 1.0f, 0);
+            }
         }
+        mca_copyf(nav->u.step.pre, pred, 2u);
     }
 }
 
@@ -875,14 +889,15 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
     nav->have_fix = 1u;
     nav->t_lastfix_us = fix->t_us;
     memcpy(nav->vel_prev, fv.vel_ned_mps, sizeof(nav->vel_prev));
-    if (nav->step_hold == 0u) {
+    if (nav->step_hold == 0u && nav->aligned) { /* (before alignment, nav->u is the alignment's) */
         /* the next anchor: this fix's N/E velocity, when the step test passed it or the CS
          * applied it (GPS step 3) */
         const int ok = (fv.vel_mask & 3u) == 3u && ((nav->step_flags & STEP_TESTED) != 0u ||
                                                      (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) == 0u);
-        mca_copyf(nav->step_v, fv.vel_ned_mps, 2u);
-        nav->step_var = fv.s_acc_mps * fv.s_acc_mps;
-        nav->step_flags = (uint8_t)((nav->step_flags & STEP_ARMED) | (ok ? STEP_ANCHOR : 0u));
+        mca_copyf(nav->u.step.v, fv.vel_ned_mps, 2u);
+        nav->u.step.var = fv.s_acc_mps * fv.s_acc_mps;
+        nav->step_flags = (uint8_t)((nav->step_flags & STEP_ARMED) | (ok ? STEP_ANCHOR : 0u) |
+                                    ((nav->step_flags & STEP_TESTED) << 1));
     }
     nav->prev_vel_mask = fv.vel_mask;
     return st;

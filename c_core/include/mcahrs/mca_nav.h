@@ -127,21 +127,30 @@ typedef struct {
     uint16_t hist_head;      /**< next slot to write */
     uint16_t hist_count;     /**< entries written, up to MCA_HIST_LEN */
     uint8_t hist_sat;        /**< saturated sample in the entry being built */
-    float init_f_sum[3];
-    float init_w_sum[3];
-    uint32_t init_win_us;    /**< alignment block time, integer sum of dt_us */
-    float init_f_all[3];     /**< sum of f since the first sample (alignment by timeout) */
-    uint32_t init_n_all;
-    uint32_t init_n;
+    /** Before alignment the alignment's sums; after it the velocity step test's state (the test
+     *  runs aligned only, ALGORITHMS.md 8, GPS step 3): one memory for both. */
+    union {
+        struct {
+            float f_sum[3];
+            float w_sum[3];
+            uint32_t win_us; /**< alignment block time, integer sum of dt_us */
+            float f_all[3];  /**< sum of f since the first sample (alignment by timeout) */
+            uint32_t n_all;
+            uint32_t n;
+        } init;
+        struct {
+            float v[2];   /**< the N/E anchor */
+            float s0[2];  /**< the step that started the last hold */
+            float var;    /**< the anchor's variance an axis: its fix's s_acc^2, plus coast_h t^2 a fix held */
+            float pre[2]; /**< the anchor before the last, carried on to the last fix */
+        } step;
+    } u;
     uint8_t init_still;      /**< every sample of the window was still */
     uint8_t step_hold;       /**< velocity step test: fixes the anchor has been held for (0: the last fix is it) */
-    uint8_t step_flags;      /**< velocity step test: anchor, armed, tested (mca_nav.c) */
+    uint8_t step_flags;      /**< velocity step test: anchor, armed, tested, pre (mca_nav.c) */
     float g_mps2;
     float acc_comp_n[3];     /**< compensation acceleration of the last fix */
     float vel_prev[3];       /**< velocity of the last fix (at t_lastfix_us; differencing) */
-    float step_v[2];         /**< velocity step test (ALGORITHMS.md 8, GPS step 3): the N/E anchor */
-    float step_s0[2];        /**< the step that started the last hold */
-    float step_var;          /**< the anchor's variance an axis: its fix's s_acc^2, plus coast_h t^2 a fix held */
     uint8_t prev_vel_mask;   /**< bit i: vel_prev[i] valid */
     uint8_t have_imu;
     uint8_t aligned;
