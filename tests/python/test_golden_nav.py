@@ -19,6 +19,7 @@ from mcahrs.errors import (
     BadDtError,
     NonFiniteError,
     RangeError,
+    SingularError,
     TimeBackwardsError,
 )
 from mcahrs.golden import attitude as att
@@ -575,6 +576,26 @@ _BAD_CALLS = {
     "alt_out_of_range": (RangeError, lambda n: n.gps(_good_fix(n, alt_mm=100_000_001))),
     "nan_vel_ne_present": (NonFiniteError, lambda n: n.gps(_good_fix(n, vel_ned_mps=(math.nan, 0.0, 0.0)))),
     "nan_vel_d_present": (NonFiniteError, lambda n: n.gps(_good_fix(n, vel_ned_mps=(1.0, 0.0, math.nan)))),
+    # GPS step 1: a finite velocity component over 1000 m/s is RANGE; not finite wins over it
+    "vel_n_over_range": (RangeError, lambda n: n.gps(_good_fix(n, vel_ned_mps=(1000.5, 0.0, 0.0)))),
+    "vel_d_over_range": (RangeError, lambda n: n.gps(_good_fix(n, vel_ned_mps=(1.0, 0.0, -1001.0)))),
+    "vel_huge": (RangeError, lambda n: n.gps(_good_fix(n, vel_ned_mps=(0.0, 1e30, 0.0)))),
+    "nan_wins_over_range": (
+        NonFiniteError,
+        lambda n: n.gps(_good_fix(n, vel_ned_mps=(2000.0, 0.0, math.nan))),
+    ),
+    # ... every accuracy (after the defaults) whose square is no finite float32 > 0 is BAD_ARG,
+    # used by the fix or not
+    "h_acc_square_overflows": (BadArgError, lambda n: n.gps(_good_fix(n, h_acc_m=1.85e19))),
+    "s_acc_square_underflows": (BadArgError, lambda n: n.gps(_good_fix(n, s_acc_mps=2.6e-23))),
+    "v_acc_unused_overflows": (
+        BadArgError,
+        lambda n: n.gps(_good_fix(n, v_acc_m=2e19, flags=GNSS_HAS_VEL_NE | GNSS_HAS_VEL_D)),  # no altitude
+    ),
+    "s_acc_unused_underflows": (
+        BadArgError,
+        lambda n: n.gps(_good_fix(n, s_acc_mps=1e-30, flags=GNSS_HAS_ALT)),  # no velocity
+    ),
     "fix_time_backwards": (TimeBackwardsError, lambda n: n.gps(_good_fix(n, t_us=n.t_lastfix_us))),
     "nan_mag": (NonFiniteError, lambda n: n.mag(n.t_imu_us, (0.2, math.nan, 0.4))),
 }
@@ -588,6 +609,96 @@ def test_bad_input_raises_and_leaves_state_unchanged(running_nav: gnav.Nav, name
     with pytest.raises(exc):
         call(nav)
     _assert_same(nav, before)
+
+
+@pytest.mark.parametrize(
+    "acc",
+    [
+        {"h_acc_m": 1.8e19},  # square 3.24e38 < FLT_MAX
+        {"v_acc_m": 1e-20},  # square 1e-40: a subnormal float32, > 0
+        {"s_acc_mps": 2.7e-23},  # square rounds up to the smallest float32
+        {"h_acc_m": math.inf, "v_acc_m": math.nan, "s_acc_mps": -1.0},  # the defaults (choice 5)
+    ],
+)
+def test_accuracies_whose_squares_are_floats_are_taken(running_nav: gnav.Nav, acc: dict[str, float]) -> None:
+    nav = copy.deepcopy(running_nav)
+    fix = _good_fix(nav, **acc)
+    nav.gps(fix)
+    assert nav.t_lastfix_us == fix.t_us
+
+
+def test_step_1_accuracy_check_is_float32(running_nav: gnav.Nav) -> None:
+    """The accuracy check on its own: the float32 square must be finite and above 0."""
+    gnav.check_accuracies(a=1.8e19, b=1e-20, c=2.7e-23)
+    for bad in (1.85e19, 2.6e-23, 1e-300, 0.0, math.inf):
+        with pytest.raises(BadArgError):
+            gnav.check_accuracies(x=bad)
+    gnav.check_fix_velocity((1000.0, -1000.0, math.nan), (True, True, False))  # D absent: not looked at
+    with pytest.raises(NonFiniteError):
+        gnav.check_fix_velocity((math.inf, 5000.0, 0.0), (True, True, True))
+    with pytest.raises(RangeError):
+        gnav.check_fix_velocity((0.0, 0.0, 1000.001), (False, False, True))
+
+
+def test_a_numerically_failed_cs_update_raises_after_step_7(running_nav: gnav.Nav) -> None:
+    """ALGORITHMS.md 8, GPS step 4: an axis update that fails numerically (N here, its position
+    variance corrupted negative: C < 0, SINGULAR) leaves that axis as predicted and returns its
+    status, but the CS was predicted to the fix: step 7 is done (t_cs moves to the fix, the fix
+    velocity is remembered), steps 5-6 are not (no observation). The axes that updated (E, D) go
+    on exactly as in a run whose N axis never failed, at this fix and the next (predicted from this
+    one, not over the interval again). Golden choice 22."""
+
+    def run(corrupt: bool) -> list[gnav.Nav]:
+        nav = copy.deepcopy(running_nav)
+        states = []
+        for k in range(3):
+            fix = _good_fix(nav, vel_ned_mps=(12.0 + 0.1 * k, 0.2, 0.0))
+            if k == 1 and corrupt:
+                p_nn = float(nav.cs.axes[0].P[0, 0])
+                nav.cs.axes[0].P[0, 0] = -100.0  # N's position variance: C < 0 at the update
+                before = copy.deepcopy(nav)
+                x_pred = nav.cs.axes[0]._predicted((fix.t_us - nav.t_lastfix_us) * 1e-6)[0]
+                with pytest.raises(SingularError):
+                    nav.gps(fix)
+                assert nav.t_lastfix_us == fix.t_us  # step 7
+                assert nav.prev_vel == fix.vel_ned_mps
+                assert nav.a_last == before.a_last  # step 5's, not done
+                np.testing.assert_array_equal(nav.cs.axes[0].x, x_pred)  # N as predicted
+                assert (nav.n_grav_made, nav.n_grav_skipped, nav.n_yaw_made) == (
+                    before.n_grav_made,
+                    before.n_grav_skipped,
+                    before.n_yaw_made,
+                )  # no step 6
+                _assert_same(nav.q, before.q)
+                _assert_same(nav.P, before.P)
+                assert nav.gps_T[0] == before.gps_T[0]  # N's last successful T
+                nav.cs.axes[0].P[0, 0] = p_nn  # repaired; E and D were not touched
+            else:
+                nav.gps(fix)
+            states.append(copy.deepcopy(nav))
+        return states
+
+    clean, failed = run(False), run(True)
+    for k in (1, 2):
+        for i in (1, 2):  # E and D updated at the failed fix, and predicted from it at the next
+            np.testing.assert_array_equal(failed[k].cs.axes[i].x, clean[k].cs.axes[i].x)
+            np.testing.assert_array_equal(failed[k].cs.axes[i].P, clean[k].cs.axes[i].P)
+        assert failed[k].t_lastfix_us == clean[k].t_lastfix_us
+    attempts = [n.n_grav_made + n.n_grav_skipped for n in (clean[2], failed[2])]
+    assert attempts[0] == attempts[1] + 1  # the failed fix made no roll/pitch attempt
+
+
+def test_a_failed_cs_update_right_after_a_restart_reports_nan(running_nav: gnav.Nav) -> None:
+    """An axis whose update failed reports the T of its last successful update since the CS filter
+    (re)started, NaN if there was none (ALGORITHMS.md 8, output); the other axes their new T."""
+    nav = copy.deepcopy(running_nav)
+    assert nav.t_lastfix_us is not None and math.isfinite(nav.gps_T[0])
+    t = nav.t_lastfix_us + 10_000_001  # past the CS dt_max: re-initialised
+    nav.gps(_good_fix(nav, t_us=t, t_rx_us=t + 20_000))
+    nav.cs.axes[0].P[0, 0] = -100.0
+    with pytest.raises(SingularError):
+        nav.gps(_good_fix(nav))
+    assert math.isnan(nav.gps_T[0]) and math.isfinite(nav.gps_T[1]) and math.isfinite(nav.gps_T[2])
 
 
 def test_huge_imu_dt_raises_bad_dt_and_only_reanchors_time(running_nav: gnav.Nav) -> None:
@@ -1036,3 +1147,69 @@ def test_robust_configurations_are_validated_and_carried() -> None:
         gnav.Nav(replace(cfg, att=replace(cfg.att, robust=RobustConfig("fta", igg_k0=5.0))))
     with pytest.raises(BadConfigError):
         gnav.Nav(replace(cfg, gps_test_imu=2))
+
+
+def _step_test_nav(reject_reset_n: int = 100) -> gnav.Nav:
+    """A Nav in fuzzy rows, aligned, with an anchor at rest (the velocity step test's state set by hand)."""
+    from mcahrs.golden.robust import RobustConfig
+
+    rows = RobustConfig("fuzzy", fuzzy_reject=2, reject_reset_n=reject_reset_n)
+    base = gnav.NavConfig()
+    cfg = replace(base, cs_h=replace(base.cs_h, coast=True, robust=rows))
+    nav = gnav.Nav(cfg)
+    nav.aligned = True
+    nav.vst.anchor = True
+    nav.vst.V_a = 0.01  # s_acc 0.1 of the anchor
+    nav.prev_vel = (0.0, 0.0, 0.0)
+    return nav
+
+
+def _step(nav: gnav.Nav, v_ne: tuple[float, float]) -> tuple[bool, bool]:
+    """One velocity step test of a fix with s_acc 0.1, no IMU increments (dv = 0), T = 0.2 s; the
+    fix's velocity then becomes v_last, and, unless held, the anchor (GPS step 7)."""
+    fx = gnav._Fix(0, 0, 0, 0, (v_ne[0], v_ne[1], 0.0), 2.5, 5.0, 0.1, 3, GNSS_HAS_VEL_NE)
+    inc = gcs.AxisInc(0.0, 0.0, 0.09, 0.0225)
+    ran, held = nav._velocity_step_test(fx, 0.2, [inc, inc, None], True)
+    nav._step7_anchor(fx, True, held, ran, ran)
+    nav.prev_vel = fx.vel
+    return ran, held
+
+
+def test_step_test_blames_an_anchor_that_was_a_spike() -> None:
+    """ALGORITHMS.md 8, GPS step 3, no fix held: a 0.5 m/s spike passes (threshold sqrt(k C) = 0.66
+    m/s with s_acc 0.1) and becomes the anchor; the next fix, 0.2 m/s the other way, is 0.7 m/s from
+    it, but agrees with the anchor before (v_pre + dv, within k C): no step, not held. Without *pre*
+    (as if the test had not run on the spike's fix) the same fix is held."""
+    for pre_known, expect_held in ((True, False), (False, True)):
+        nav = _step_test_nav()
+        assert _step(nav, (0.0, 0.0)) == (True, False)  # clean
+        assert _step(nav, (-0.5, 0.0)) == (True, False)  # the spike passes its own test
+        np.testing.assert_array_equal(nav.vst.v_a, (-0.5, 0.0))
+        np.testing.assert_array_equal(nav.vst.v_pre, (0.0, 0.0))  # the anchor before, carried on
+        assert nav.vst.pre
+        nav.vst.pre = pre_known
+        assert _step(nav, (0.2, 0.0)) == (True, expect_held)
+        if not expect_held:
+            np.testing.assert_array_equal(nav.vst.v_pre, (-0.5, 0.0))  # v_p of the fix not held
+            np.testing.assert_array_equal(nav.vst.v_a, (0.2, 0.0))
+
+
+def test_step_test_holds_a_fix_nearer_the_held_step_than_the_anchor() -> None:
+    """ALGORITHMS.md 8, GPS step 3, while holding: a fix within k C of the held anchor (whose
+    variance has grown) still fails when it is nearer the held step s0 than the anchor,
+    2 s . s0 >= |s0|^2; one nearer the anchor is let in (the hold ends). A held fix leaves v_pre,
+    *pre* and the anchor as they were; no anchor is written before alignment."""
+    nav = _step_test_nav()
+    _step(nav, (0.0, 0.0))
+    assert _step(nav, (1.0, 0.0)) == (True, True)  # a 1 m/s step: held, s0 = (1, 0)
+    np.testing.assert_array_equal(nav.vst.s0, (1.0, 0.0))
+    nav.vst.V_a = 10.0  # the held anchor's variance grown: k C = 18.4 m^2/s^2 (chi2_2(0.005) 10.6)
+    assert _step(nav, (0.6, 0.0)) == (True, True)  # 2 s.s0 = 1.2 >= 1: still held
+    assert nav.vst.n == 2 and nav.vst.pre and np.array_equal(nav.vst.v_pre, (0.0, 0.0))
+    assert _step(nav, (0.4, 0.0)) == (True, False)  # 0.8 < 1: nearer the anchor, released
+    assert nav.vst.n == 0
+    np.testing.assert_array_equal(nav.vst.v_pre, (0.0, 0.0))  # v_p: the held anchor carried on
+    nav.aligned = False
+    v_a = nav.vst.v_a.copy()
+    _step(nav, (0.3, 0.0))  # the test ran (by hand) but nothing is written at step 7 unaligned
+    np.testing.assert_array_equal(nav.vst.v_a, v_a)

@@ -594,6 +594,44 @@ def test_bad_input_raises_and_keeps_state() -> None:
     assert bytes(ffi.buffer(ins._ins)) == before
 
 
+def test_golden_fix_validation_matches_the_c_status_by_status() -> None:
+    """ALGORITHMS.md 10, GNSS update step 1 = section 8, GPS step 1: a velocity component over 1000
+    m/s is RANGE (a non-finite one NONFINITE first), every accuracy after the defaults (before the
+    noise minimum), used or not, whose square is no finite float > 0 is BAD_ARG; the golden INS gives
+    the C's status on every fix, and the run goes on the same (the flags agree)."""
+    from mcahrs.samples import GNSS_HAS_ALT
+
+    rec = scenario("car_accel_brake", seed=1, duration_s=14.0).recording
+    gn = rec.gnss.copy()
+    nan = math.nan
+    edits = {
+        20: ("vel_ned_mps", [1000.5, 0.0, 0.0]),  # RANGE
+        21: ("vel_ned_mps", [2000.0, nan, 0.0]),  # NONFINITE wins
+        22: ("v_acc_m", 2e19),  # unused below: no altitude on this fix
+        23: ("s_acc_mps", 2.6e-23),  # the float32 square is 0
+        24: ("h_acc_m", 1.85e19),  # the float32 square overflows
+        25: ("h_acc_m", 1e-20),  # a subnormal square: taken (then raised to the noise minimum)
+        26: ("s_acc_mps", 2.7e-23),  # rounds up to the smallest float32: taken
+        27: ("h_acc_m", math.inf),  # the default
+        40: ("vel_ned_mps", [0.0, 0.0, -1000.001]),  # RANGE (navigating by now)
+        41: ("s_acc_mps", 1e-40),
+    }
+    for i, (key, value) in edits.items():
+        gn[key][i] = value
+    gn["flags"][22] &= ~np.uint8(GNSS_HAS_ALT)
+    bad = type(rec)(rec.name, rec.imu, gn, rec.mag, rec.ref, rec.meta)
+    cfg = core.ins_config("ground", gps_pos_noise_min_m=0.5, gps_vel_noise_min_mps=0.3)
+    c = core.ins_replay(bad, cfg)
+    g = gins.replay(bad, gins.config_from_c(core.config_dict(cfg)), core.gnss_to_c(bad.gnss))
+    np.testing.assert_array_equal(c["gps_status"], g["gps_status"])
+    np.testing.assert_array_equal(c["flags"], g["flags"])
+    lib = core.lib
+    expected = [lib.MCA_ERR_RANGE, lib.MCA_ERR_NONFINITE] + [lib.MCA_ERR_BAD_ARG] * 3 + [lib.MCA_OK] * 3
+    assert list(g["gps_status"][20:28]) == expected
+    assert list(g["gps_status"][40:42]) == [lib.MCA_ERR_RANGE, lib.MCA_ERR_BAD_ARG]
+    assert np.count_nonzero(g["gps_status"]) == 7
+
+
 def test_config_errors() -> None:
     with pytest.raises(errors.BadConfigError):
         core.ins_config("boat")

@@ -60,8 +60,10 @@ from mcahrs.errors import (
     BadConfigError,
     BadDtError,
     BadMaskError,
+    McaError,
     NonFiniteError,
     NotInitError,
+    SingularError,
 )
 from mcahrs.golden.robust import (
     FUZZY_ROWS,
@@ -668,8 +670,51 @@ class Cs3:
         ALGORITHMS.md 8 GPS step 3). After each update the axis is marked ``out`` (coasting) when it was
         rejected or left its velocity row out, and ``left`` when it was rejected or left any row out;
         with ``coast`` set, a coast that starts at an aided update starts from the prior
-        (``p``, ``v`` += the prior's shift). Every result is computed before any axis changes.
-        """
+        (``p``, ``v`` += the prior's shift). Every result is computed before any axis changes; an axis
+        update that fails (SINGULAR, NONFINITE) raises with no axis changed (see
+        :meth:`update_robust_partial` for the navigation filter's GPS step 4)."""
+        reports, failures = self._robust_results(z_p, z_v, r_p, r_v, mask, vel_held)
+        for err in failures:
+            if err is not None:
+                raise err
+        return self._commit_robust(reports)
+
+    def update_robust_partial(
+        self,
+        z_p: object,
+        z_v: object,
+        r_p: object,
+        r_v: object,
+        mask: object,
+        vel_held: bool = False,
+    ) -> tuple[list[RobustReport | None], list[McaError | None]]:
+        """:meth:`update_robust` as the navigation filter's GPS step 4 runs it (ALGORITHMS.md 8): the
+        inputs are checked as there (nothing changes on a bad one), but an axis update that fails
+        numerically (SINGULAR, NONFINITE: a corrupted covariance) leaves that axis as predicted (its
+        state, memory and coasting marks; its prior is consumed) while the other axes update. Returns
+        the reports (None for an axis not updated or failed) and each axis' failure (None if none)."""
+        results, failures = self._robust_results(z_p, z_v, r_p, r_v, mask, vel_held)
+        for ax, err in zip(self.axes, failures, strict=True):
+            if err is not None:
+                ax.prior = None  # the prior was this interval's: consumed
+        return self._commit_robust(results), failures
+
+    def _commit_robust(self, results: list) -> list[RobustReport | None]:
+        reports: list[RobustReport | None] = []
+        for ax, result in zip(self.axes, results, strict=True):
+            if result is None:
+                reports.append(None)
+                continue
+            ax.x, ax.P, rep, ax.mem, ax.out, ax.left = result
+            ax.prior = None
+            reports.append(rep)
+        return reports
+
+    def _robust_results(
+        self, z_p: object, z_v: object, r_p: object, r_v: object, mask: object, vel_held: bool
+    ) -> tuple[list, list[McaError | None]]:
+        """Every axis' robust update result (x, P, report, memory, out, left), None for an axis not
+        updated or failed, and each axis' numerical failure; raises on a bad input, nothing changed."""
         for ax in self.axes:
             ax._require_init()
         masks = [_check_mask(m) for m in _three("mask", mask)]
@@ -695,23 +740,32 @@ class Cs3:
             and tests[0] is not None
             and tests[1] is not None
         ):
-            failed = [
-                fuzzy_rows_failed(ax.cfg.robust, ax.mem, *tests[i])  # type: ignore[misc]
-                for i, ax in enumerate((n_ax, e_ax))
-            ]
+            failed: list[tuple[bool, ...]] = []
+            for i, ax in enumerate((n_ax, e_ax)):
+                try:
+                    failed.append(fuzzy_rows_failed(ax.cfg.robust, ax.mem, *tests[i]))  # type: ignore[misc]
+                except (SingularError, NonFiniteError):  # that axis' own update fails the same way
+                    failed.append((False, False))
             held = (False, bool(vel_held))
             pair[0] = tuple(a or b for a, b in zip(failed[1], held, strict=True))
             pair[1] = tuple(a or b for a, b in zip(failed[0], held, strict=True))
-        new = []
+        new: list = []
+        failures: list[McaError | None] = []
         for i, (ax, m, row) in enumerate(zip(self.axes, masks, rows, strict=True)):
+            failures.append(None)
             if row is None:
                 new.append(None)
                 continue
             H, z, r = row
             mem = copy.deepcopy(ax.mem)
-            x, P, rep = robust_update(
-                ax.x, ax.P, H, z, r, ax.cfg.robust, mem, test=tests[i], pair_out=pair[i]
-            )
+            try:
+                x, P, rep = robust_update(
+                    ax.x, ax.P, H, z, r, ax.cfg.robust, mem, test=tests[i], pair_out=pair[i]
+                )
+            except (SingularError, NonFiniteError) as err:
+                failures[i] = err
+                new.append(None)
+                continue
             k = H.shape[0]
             # rows left out by this update: the memory counts them (an update that keeps a row sets its
             # count to 0; a reset clears the memory and applied every row)
@@ -722,12 +776,4 @@ class Cs3:
                 x = np.array(x)
                 x[:2] += ax.shift  # the coast starts from the IMU-aided prediction
             new.append((x, P, rep, mem, out, bool(rep.rejected) or any(left_rows)))
-        reports: list[RobustReport | None] = []
-        for ax, result in zip(self.axes, new, strict=True):
-            if result is None:
-                reports.append(None)
-                continue
-            ax.x, ax.P, rep, ax.mem, ax.out, ax.left = result
-            ax.prior = None
-            reports.append(rep)
-        return reports
+        return new, failures

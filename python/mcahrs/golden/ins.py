@@ -35,10 +35,10 @@ from mcahrs.errors import (
     BadConfigError,
     BadDtError,
     NonFiniteError,
-    RangeError,
     TimeBackwardsError,
 )
 from mcahrs.golden import geo
+from mcahrs.golden.nav import check_accuracies, check_fix_velocity
 from mcahrs.golden.robust import (
     RobustConfig,
     RobustReport,
@@ -81,7 +81,7 @@ STILL_SPEED = 0.5  # m/s: GNSS ground speed below which a still window may re-le
 G0 = 9.80665
 YAW_NONE, YAW_MAG, YAW_COG = 0, 1, 2
 FIX_VEL_NE, FIX_VEL_D, FIX_ALT = 1, 2, 4  # mca_gps_fix_t flags (ALGORITHMS.md 8)
-FIX_VEL_MAX_MPS = 1000.0  # a larger velocity component is RANGE (ALGORITHMS.md 8, GPS step 1)
+# GNSS update step 1 (the fix velocity and accuracy checks) is mcahrs.golden.nav's GPS step 1.
 
 FLAG_ALIGNED, FLAG_HOME_SET, FLAG_NAV, FLAG_YAW_ALIGNED = 1, 2, 4, 8
 FLAG_GPS_LOST, FLAG_HIST_MISS, FLAG_REJECTED, FLAG_SATURATED = 16, 32, 64, 128
@@ -711,11 +711,12 @@ class Ins:
         lat_e7, lon_e7, alt_mm = int(get("lat_e7")), int(get("lon_e7")), int(get("alt_mm"))
         geo.check_geodetic(lat_e7, lon_e7, alt_mm if has_alt else 0)
         vel_in = np.asarray(get("vel_ned_mps"), float)
-        present = np.array([has_vne, has_vne, has_vd])
-        if not np.all(np.isfinite(vel_in[present])):
-            raise NonFiniteError("fix velocity not finite")
-        if np.any(np.abs(vel_in[present]) > FIX_VEL_MAX_MPS):
-            raise RangeError(f"fix velocity {vel_in[present]} m/s: a component over {FIX_VEL_MAX_MPS:g} m/s")
+        check_fix_velocity(vel_in, (has_vne, has_vne, has_vd))  # NONFINITE (first), then RANGE
+        # every accuracy after the defaults, before the noise minimum of step 3, used by the fix or not
+        h_acc = _accuracy(get("h_acc_m"), self.cfg.gps_pos_sigma_m)
+        v_acc = _accuracy(get("v_acc_m"), self.cfg.gps_alt_sigma_m)
+        s_acc = _accuracy(get("s_acc_mps"), self.cfg.gps_vel_sigma_mps)
+        check_accuracies(h_acc_m=h_acc, v_acc_m=v_acc, s_acc_mps=s_acc)
         t_fix = int(get("t_us"))
         if self.have_fix and t_fix <= self.t_lastfix:
             raise TimeBackwardsError(f"fix time {t_fix} <= {self.t_lastfix}")
@@ -724,9 +725,7 @@ class Ins:
         )
         vmask = (has_vne, has_vne, has_vd)
         p_min, v_min = self.cfg.gps_pos_noise_min_m, self.cfg.gps_vel_noise_min_mps
-        h_acc = max(_accuracy(get("h_acc_m"), self.cfg.gps_pos_sigma_m), p_min)
-        v_acc = max(_accuracy(get("v_acc_m"), self.cfg.gps_alt_sigma_m), p_min)
-        s_acc = max(_accuracy(get("s_acc_mps"), self.cfg.gps_vel_sigma_mps), v_min)
+        h_acc, v_acc, s_acc = max(h_acc, p_min), max(v_acc, p_min), max(s_acc, v_min)
         r_pos, rx_q = self._receiver_error(h_acc, v_acc)
         if self.home is None:
             self.home = (lat_e7, lon_e7, alt_mm if has_alt else 0)

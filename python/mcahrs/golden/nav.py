@@ -6,11 +6,14 @@ alignment, the history ring, the IMU / GPS / magnetometer steps, the output reco
 :func:`run`, a batch replay of a :class:`mcahrs.samples.Recording`.
 
 Each step either succeeds or raises an :class:`mcahrs.errors.McaError` subclass with the
-state unchanged (the one documented exception: ``BadDtError`` from the IMU step re-anchors
-the IMU time).
+state unchanged (the documented exceptions: ``BadDtError`` from the IMU step re-anchors
+the IMU time; a CS axis update of the GPS step that fails numerically is raised after the
+fix's step 7, choice 22).
 
 Choices where ALGORITHMS.md leaves room (checked against the spec as of its "Times" and
-"Yaw alignment" paragraphs, the robust modes as of its "velocity step test", and step by step
+"Yaw alignment" paragraphs, the robust modes as of its "velocity step test" with the anchor
+before (``v_pre``, *pre*) and the held step's guard, GPS step 1's velocity and accuracy checks and
+GPS step 4's numerically failed axis update, and step by step
 against the C core in
 tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
@@ -32,9 +35,17 @@ tests/python/test_nav_golden_vs_c.py)
     as skipped; it never changes the status of the step (IMU / GPS / mag) that made it.
 5.  GPS step: accuracies that are NaN, infinite or <= 0 use the configured defaults; the
     altitude range is checked only when the fix has altitude (an absent value is not looked
-    at). ``a_last`` (the lost-GPS decay start) is the CS ``a`` after the update, 0 after a
-    home fix or a CS re-initialisation. The yaw-uncertainty term of step 5 uses ``P[2][2]``
-    as it is at the GPS step, before that step's observations.
+    at). Step 1 in the spec's order: fix_type, position range, the velocity flagged present
+    (every component's finiteness before any component's range, so NONFINITE wins over RANGE;
+    "over 1000 m/s": ``|v| > 1000``), the three accuracies after the defaults (``h_acc``,
+    ``v_acc``, ``s_acc`` in that order, each whether the fix uses it or not; "its square is not a
+    finite float > 0": the accuracy as a float32, squared in float32, is inf or 0, so a subnormal
+    square is accepted, :func:`check_accuracies`), then the time. The golden INS runs the same
+    checks (ALGORITHMS.md 10, GNSS update step 1), on the accuracies before its noise minimum.
+    ``a_last`` (the lost-GPS decay start; the spec names it only in IMU step 6) is the CS ``a``
+    after the update, set with step 5's compensation acceleration (so not by a fix whose CS update
+    failed, choice 22), 0 after a home fix or a CS re-initialisation. The yaw-uncertainty term of
+    step 5 uses ``P[2][2]`` as it is at the GPS step, before that step's observations.
 6.  Course over ground needs the NE-velocity flag (``speed_mps``/``course_rad`` are not used);
     its ``s_acc`` is the fix's effective ``s_acc`` (fix value, else ``gps_vel_sigma_mps``). It
     uses the history entry nearest ``t_fix`` (skipped on a miss; saturation does not matter to
@@ -86,8 +97,8 @@ tests/python/test_nav_golden_vs_c.py)
     block (section 7) at every propagation.
 17. A CS re-initialisation (GPS step 3, ``T > dt_max``) restarts the axes as at home: their robust
     memories, coasting marks and priors are cleared (the attitude memory and the last flagged fix
-    are kept); the step test's ``n = 0``, and at step 7 the fix's N, E velocity is the anchor when
-    it has one (no update left it out).
+    are kept); the step test's ``n = 0``, and at step 7 (when aligned) the fix's N, E velocity is the
+    anchor when it has one (no update left it out), with *pre* clear (the test did not run on it).
 18. Coasting marks (section 2): after each update an axis is ``out`` when it was rejected or left
     out the velocity row it had (this update's rows: the memory's ``n_removed`` of its rows, which an
     update that keeps a row sets to 0; a lock-up reset applies every row); an axis not updated
@@ -109,10 +120,31 @@ tests/python/test_nav_golden_vs_c.py)
     as it was. The detectors' ``D`` changes are made before the predict and the updates (so the N/E
     pair's plans see them). ``v_last`` is the previous accepted fix's velocity (held or not). "The
     test ran on it": its conditions held, whatever its outcome; otherwise the anchor needs both N
-    and E with the velocity row applied (their coasting marks clear after the update).
+    and E with the velocity row applied (their coasting marks clear after the update). The anchor
+    before: with no fix held, the agreement ``|v_fix - (v_pre + dv)|^2 <= k C`` uses the same ``k``
+    (``chi2_2(1e-4)``) and ``C`` (the current anchor's ``V_a``) as the step; it only clears a failure
+    (so a fix it clears is neither held nor the return). While holding, the nearer-the-step test
+    ``2 s . s0 >= |s0|^2`` fails a fix whatever ``k C`` says (the return is then judged on ``r`` as
+    before). ``v_pre = v_p`` on every fix the test ran on and did not hold (the return and the fix
+    after a hold included); a held fix keeps ``v_pre`` and *pre*. At step 7 nothing of the test is
+    written before alignment (the anchor, *pre* and ``V_a`` stay; the test runs aligned only).
 21. The N/E pair (section 5) is formed when N and E both run fuzzy rows, both have a prior and both
     take position and velocity; each plan is ``robust.fuzzy_rows_failed`` on the axis' memory (read
-    only), and a held fix's velocity rows are added to both pairs.
+    only), and a held fix's velocity rows are added to both pairs. A plan whose test fails
+    numerically (SINGULAR, NONFINITE: that axis' own update then fails the same way) sends no row
+    out of the other axis.
+22. A CS axis update that fails numerically (GPS step 4: SINGULAR, NONFINITE; only a corrupted
+    covariance does, the inputs being bounded by step 1): every axis is updated from the same
+    predicted CS (``cs.Cs3.update_robust_partial``); a failed one keeps its predicted state, its robust
+    memory as it was before the update (the step test's ``D`` changes of step 3 stay) and its coasting
+    marks, and loses its prior; the others are updated. The status raised is the first failing axis'
+    (N, E, D). Step 3's test state stays as the test left it (held or not), steps 5-6 are skipped (no
+    compensation, no flag, no observation, no count), and step 7 is done: ``t_lastfix = t_cs = t_fix``,
+    the fix velocity remembered, and the anchor (when aligned, not held) with "both the N and E
+    updates applied their velocity" false when either of them failed. ``a_last`` stays the last
+    fix's (it is step 5's; the lost-GPS decay then runs from this fix's time). ``gps_T`` of a failed axis
+    keeps its last successful update's T since the CS filter (re)started (home or re-initialisation),
+    NaN if there was none (ALGORITHMS.md 8, output).
 """
 
 from __future__ import annotations
@@ -148,6 +180,7 @@ __all__ = [
     "COMP_CS",
     "COMP_GPS_DIFF",
     "COMP_OFF",
+    "FIX_VEL_MAX_MPS",
     "FLAG_ALARM_N",
     "FLAG_ALIGNED",
     "FLAG_GPS_LOST",
@@ -167,6 +200,8 @@ __all__ = [
     "Nav",
     "NavConfig",
     "NavOutput",
+    "check_accuracies",
+    "check_fix_velocity",
     "replay_order",
     "run",
     "status_code",
@@ -193,6 +228,7 @@ STEP_LEVEL_FAIL = 1e-4  # GPS step 3, velocity step test: chi2_2(this) with no f
 STEP_LEVEL_HELD = 0.005  # ... chi2_2(this) while fixes are held
 
 G_DEFAULT = 9.80665  # gravity before home when not configured
+FIX_VEL_MAX_MPS = 1000.0  # MCA_FIX_VEL_MAX_MPS: a larger fix velocity component is RANGE (GPS step 1)
 
 # ALGORITHMS.md 4 status codes; OK is 0.
 STATUS_CODES: dict[type[McaError], int] = {
@@ -420,6 +456,9 @@ class _StepTest:
     s0: np.ndarray = field(default_factory=lambda: np.zeros(2))  # the step that started the last hold
     anchor: bool = False  # v_a exists
     armed: bool = False  # a return is armed
+    # the anchor before v_a, carried on to the last fix the test ran on and did not hold
+    v_pre: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    pre: bool = False  # the test ran on the previous fix (v_pre is its)
 
 
 class _Fix(NamedTuple):
@@ -445,6 +484,31 @@ def _accuracy(v: Any, default: float) -> float:
     """ALGORITHMS.md 8 GPS step: NaN (or not finite, or <= 0) uses the configured default."""
     x = float(v)
     return x if (math.isfinite(x) and x > 0.0) else default
+
+
+def check_fix_velocity(vel: Any, present: Any) -> None:
+    """ALGORITHMS.md 8, GPS step 1 (and 10, GNSS update step 1): a velocity component flagged present
+    that is not finite is NonFiniteError (checked on every present component first, so it wins over
+    the range); a finite one over ``FIX_VEL_MAX_MPS`` in magnitude is RangeError."""
+    v = np.asarray(vel, dtype=np.float64).reshape(3)[np.asarray(present, dtype=bool)]
+    if not np.all(np.isfinite(v)):
+        raise NonFiniteError("velocity flagged present is not finite")
+    if np.any(np.abs(v) > FIX_VEL_MAX_MPS):
+        raise RangeError(f"fix velocity {v} m/s: a component over {FIX_VEL_MAX_MPS:g} m/s")
+
+
+def check_accuracies(**accuracies: float) -> None:
+    """ALGORITHMS.md 8, GPS step 1 (and 10, GNSS update step 1): every accuracy, after the defaults,
+    used by the fix or not, whose square is not a finite float > 0 is BadArgError. "float" is the
+    spec's float32: the square of the accuracy as a float32, rounded to float32, must be finite and
+    above 0 (a subnormal square is a float > 0; the spec's "under ~1e-19" is where squares leave the
+    normal range, which a flush-to-zero FPU takes as 0)."""
+    with np.errstate(over="ignore", under="ignore"):
+        for name, acc in accuracies.items():
+            a = np.float32(acc)
+            sq = a * a
+            if not (np.isfinite(sq) and sq > 0.0):
+                raise BadArgError(f"{name} = {acc!r}: its square is not a finite float > 0")
 
 
 def _white(accuracy: float, white: float) -> float:
@@ -510,6 +574,7 @@ class Nav:
         self.g = cfg.gravity_mps2 if cfg.gravity_mps2 > 0.0 else G_DEFAULT
         self.cs = Cs3(cfg.cs_h, cfg.cs_v)
         self.t_lastfix_us: int | None = None  # == t_cs
+        self.cs_T_set = [False, False, False]  # each CS axis updated since the CS (re)started
         self.prev_vel: tuple[float, float, float] = (math.nan, math.nan, math.nan)
         self.prev_has_vel = (False, False, False)
         self.a_last: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -774,9 +839,13 @@ class Nav:
     def gps(self, fix: Any) -> None:
         """GPS step (ALGORITHMS.md 8). ``fix``: a GnssFix or a GNSS_DTYPE record.
 
-        Raises BadArgError (fix_type < 2), RangeError, NonFiniteError (velocity flagged present
-        but not finite), TimeBackwardsError, and whatever the CS update raises; state unchanged
-        (but for the pending observation of the last IMU step, completed first).
+        Step 1 raises BadArgError (fix_type < 2, an accuracy whose square is no finite float > 0),
+        RangeError (position, a velocity component over 1000 m/s), NonFiniteError (a velocity
+        flagged present but not finite), TimeBackwardsError, with the state unchanged (but for the
+        pending observation of the last IMU step, completed first). A CS axis update that fails
+        numerically (SingularError, NonFiniteError: a corrupted covariance) is raised after the
+        fix's step 7 (GPS step 4; choice 22): the CS stays predicted to the fix, its other axes
+        updated, and no attitude observation is made.
         """
         self._complete_pending()
         cfg = self.cfg
@@ -788,10 +857,8 @@ class Nav:
         if fx.fix_type < 2:
             raise BadArgError(f"fix_type {fx.fix_type} < 2")
         geo.check_geodetic(fx.lat_e7, fx.lon_e7, fx.alt_mm if has_alt else None)
-        if (has_ne and not (math.isfinite(fx.vel[0]) and math.isfinite(fx.vel[1]))) or (
-            has_d and not math.isfinite(fx.vel[2])
-        ):
-            raise NonFiniteError("velocity flagged present is not finite")
+        check_fix_velocity(fx.vel, (has_ne, has_ne, has_d))  # NONFINITE, then RANGE
+        check_accuracies(h_acc_m=fx.h_acc, v_acc_m=fx.v_acc, s_acc_mps=fx.s_acc)  # used or not
         if self.t_lastfix_us is not None and fx.t_us <= self.t_lastfix_us:
             raise TimeBackwardsError(f"fix time {fx.t_us} <= {self.t_lastfix_us}")
         has_vel = (has_ne, has_ne, has_d)
@@ -801,6 +868,7 @@ class Nav:
         if self.home is None:
             home_alt = fx.alt_mm if has_alt else 0
             self.cs.init((0.0, 0.0, 0.0), v0)
+            self.cs_T_set = [False, False, False]
             self.home = (fx.lat_e7, fx.lon_e7, home_alt)
             if cfg.gravity_mps2 == 0.0:
                 self.g = geo.normal_gravity_e7(fx.lat_e7, home_alt)
@@ -818,9 +886,10 @@ class Nav:
             # Re-initialise instead (memories and coasting marks cleared, choice 17); compensation
             # acceleration 0; steps 4-6 skipped; the step test's hold ends.
             self.cs.init(ned, v0)
+            self.cs_T_set = [False, False, False]
             self.a_last = (0.0, 0.0, 0.0)
             self.vst.n = 0
-            self._step7_anchor(fx, has_ne, False, has_ne)
+            self._step7_anchor(fx, has_ne, False, False, has_ne)
             self._remember_fix(fx, has_vel)
             return
         incs = self._aided_increments(fx.t_us, T)
@@ -836,17 +905,29 @@ class Nav:
             # the predict, plain or coasting, with the IMU-aided test priors.
             ran, held = self._velocity_step_test(fx, T, incs, has_ne)
             self.cs.predict_aided(T, incs)
-            # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5).
-            reports = self.cs.update_robust(
+            # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5); its inputs were bounded at
+            # step 1, so only an axis update failing numerically (SINGULAR, NONFINITE) is an error here.
+            reports, failures = self.cs.update_robust_partial(
                 z_p=ned, z_v=fx.vel, r_p=r_p, r_v=(fx.s_acc**2,) * 3, mask=masks, vel_held=held
             )
         except McaError:
             self.cs, self.vst = saved
             raise
-        # From here on nothing raises. The reported T is the tested one (GPS step 3, section 5).
+        # The reported T is the tested one (GPS step 3, section 5); an axis whose update failed reports
+        # its last successful update's since the CS (re)started, NaN if none (choice 22).
         for i, rep in enumerate(reports):
             if rep is not None:
                 self.gps_T[i] = rep.T
+                self.cs_T_set[i] = True
+            elif failures[i] is not None and not self.cs_T_set[i]:
+                self.gps_T[i] = math.nan
+        failure = next((err for err in failures if err is not None), None)
+        if failure is not None:
+            # GPS step 4: the failed axes stay as predicted, the others updated; the CS was predicted
+            # to the fix all the same, so step 7 is done (the next fix predicts from this one); steps
+            # 5-6 are not (choice 22). The error is then raised.
+            self._step7(fx, has_vel, held, ran, reports)
+            raise failure
         a_cs = tuple(float(ax.x[2]) for ax in self.cs.axes)
         flagged = any(self._flags_fix(i, reports[i], masks[i]) for i in (0, 1))
         if flagged:
@@ -854,7 +935,8 @@ class Nav:
         # within tau_a (horizontal CS) of the last flagged fix, this one included: no roll/pitch
         rp_held = self.t_flag_us is not None and fx.t_us - self.t_flag_us < self._tau_a_us[0]
 
-        # Step 5: compensation acceleration.
+        # Step 5: compensation acceleration (and a_last, the lost-GPS decay's start, choice 5).
+        self.a_last = a_cs  # type: ignore[assignment]
         usable = True
         if cfg.comp_mode == COMP_CS:
             a_n: tuple[float, float, float] = a_cs  # type: ignore[assignment]
@@ -889,10 +971,23 @@ class Nav:
             if cfg.yaw_source == YAW_COG and has_ne and not flagged:
                 self._course_observation(fx)
 
-        # Step 7.
-        self.a_last = a_cs  # type: ignore[assignment]
-        applied_v = has_ne and not (self.cs.axes[0].out or self.cs.axes[1].out)
-        self._step7_anchor(fx, has_ne, held, ran or applied_v)
+        self._step7(fx, has_vel, held, ran, reports)
+
+    def _step7(
+        self,
+        fx: _Fix,
+        has_vel: tuple[bool, bool, bool],
+        held: bool,
+        ran: bool,
+        reports: list[RobustReport | None],
+    ) -> None:
+        """GPS step 7 after a CS update, whole or with failed axes: t_lastfix = t_cs = t_fix, the fix
+        velocity remembered, the step test's anchor (the N and E updates applied their velocity: both
+        made, neither marked out; choice 22)."""
+        has_ne = has_vel[0]
+        made = reports[0] is not None and reports[1] is not None
+        applied_v = has_ne and made and not (self.cs.axes[0].out or self.cs.axes[1].out)
+        self._step7_anchor(fx, has_ne, held, ran, ran or applied_v)
         self._remember_fix(fx, has_vel)
 
     def _flags_fix(self, axis: int, rep: RobustReport | None, mask: int) -> bool:
@@ -935,10 +1030,14 @@ class Nav:
         C_r = 2.0 * s_acc2 + qa * T * T
         k = chi2_quantile(STEP_LEVEL_FAIL if st.n == 0 else STEP_LEVEL_HELD, 2)
         ss, rr = float(s @ s), float(r @ r)
-        fails = ss > k * C
         holding = st.n > 0
-        u, q = (r, rr) if holding else (s, ss)
         s0n = float(st.s0 @ st.s0)
+        if holding:  # still failing, or nearer the held step than the anchor
+            fails = ss > k * C or 2.0 * float(s @ st.s0) >= s0n
+        else:  # a step, unless it agrees with the anchor before (the anchor was the spike)
+            d_pre = v_fix - (st.v_pre + dv)
+            fails = ss > k * C and not (st.pre and float(d_pre @ d_pre) <= k * C)
+        u, q = (r, rr) if holding else (s, ss)
         us0 = float(u @ st.s0)
         reverse = us0 < 0.0 and us0 * us0 >= 0.5 * q * s0n and 0.25 * s0n <= q <= 2.25 * s0n
         stepped_back = rr > chi2_quantile(STEP_LEVEL_FAIL, 2) * C_r
@@ -959,17 +1058,19 @@ class Nav:
                 for ax in (n_ax, e_ax):
                     ax.mem.d_k = min(ax.mem.d_k, 1.0)
         st.n = 0
+        st.v_pre = v_p  # every fix not held
         return True, False
 
-    def _step7_anchor(self, fx: _Fix, has_ne: bool, held: bool, ok: bool) -> None:
-        """GPS step 7 for the velocity step test: unless the fix was held, its N, E velocity is the
-        anchor, with variance s_acc^2, when it has one and ``ok`` (the test ran on it, or both N and
-        E applied their velocity)."""
-        if held:
+    def _step7_anchor(self, fx: _Fix, has_ne: bool, held: bool, ran: bool, ok: bool) -> None:
+        """GPS step 7 for the velocity step test: when aligned and unless the fix was held, its N, E
+        velocity is the anchor, with variance s_acc^2, when it has one and ``ok`` (the test ran on it,
+        or both N and E applied their velocity); *pre* is whether the test ran on it."""
+        if held or not self.aligned:
             return
         st = self.vst
         st.v_a = np.array(fx.vel[:2])
         st.V_a = fx.s_acc**2
+        st.pre = ran
         st.anchor = has_ne and ok
 
     def _imu_increments(self, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray] | None:
