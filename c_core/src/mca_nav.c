@@ -897,7 +897,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
         mca_copyf(nav->u.step.v, fv.vel_ned_mps, 2u);
         nav->u.step.var = fv.s_acc_mps * fv.s_acc_mps;
         nav->step_flags = (uint8_t)((nav->step_flags & STEP_ARMED) | (ok ? STEP_ANCHOR : 0u) |
-                                    ((nav->step_flags & STEP_TESTED) << 1));
+                                    ((nav->step_flags & STEP_TESTED) != 0u ? STEP_PRE : 0u));
     }
     nav->prev_vel_mask = fv.vel_mask;
     return st;
