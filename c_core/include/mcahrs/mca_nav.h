@@ -82,7 +82,7 @@ typedef struct {
     float gps_alt_white_m;      /**< the same for the vertical position (v_acc, cs_v), >= 0 */
 } mca_nav_config_t;
 
-/** One GPS fix. Absent accuracy: NaN or <= 0. */
+/** One GPS fix. Absent accuracy: not a finite number > 0 (NaN, 0, negative, infinite). */
 typedef struct {
     uint64_t t_us;           /**< validity time, IMU clock */
     int32_t lat_e7;          /**< 1e-7 deg */
