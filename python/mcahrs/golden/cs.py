@@ -604,6 +604,20 @@ class Cs3:
             ax.x, ax.P, ax.s2 = x, P, s2
         return np.array([s2 for (_, _, s2) in new])
 
+    def _checked_rows(
+        self, z_p: object, z_v: object, r_p: object, r_v: object, mask: object
+    ) -> tuple[list[int], list]:
+        """Every axis initialised, every mask known and not all 0, then each axis' rows (H, z, r) or
+        None for mask 0, checked N, E, D (``_measurement_rows``); raises with nothing changed."""
+        for ax in self.axes:
+            ax._require_init()
+        masks = [_check_mask(m) for m in _three("mask", mask)]
+        if not any(masks):
+            raise BadMaskError("mask is 0 on all three axes")
+        zp, zv, rp, rv = _three("z_p", z_p), _three("z_v", z_v), _three("r_p", r_p), _three("r_v", r_v)
+        rows = [_measurement_rows(m, zp[i], zv[i], rp[i], rv[i]) if m else None for i, m in enumerate(masks)]
+        return masks, rows
+
     def update(
         self, z_p: object, z_v: object, r_p: object, r_v: object, mask: object
     ) -> list[UpdateReport | None]:
@@ -613,13 +627,7 @@ class Cs3:
         mask with unknown bits, is BadMaskError. Order of checks: every mask, then each
         axis' values and variances (N, E, D), then the updates; nothing changes on error.
         """
-        for ax in self.axes:
-            ax._require_init()
-        masks = [_check_mask(m) for m in _three("mask", mask)]
-        if not any(masks):
-            raise BadMaskError("mask is 0 on all three axes")
-        zp, zv, rp, rv = _three("z_p", z_p), _three("z_v", z_v), _three("r_p", r_p), _three("r_v", r_v)
-        rows = [_measurement_rows(m, zp[i], zv[i], rp[i], rv[i]) if m else None for i, m in enumerate(masks)]
+        masks, rows = self._checked_rows(z_p, z_v, r_p, r_v, mask)
         new = [
             kf_update(ax.x, ax.P, *row) if row is not None else None
             for ax, row in zip(self.axes, rows, strict=True)
@@ -715,13 +723,7 @@ class Cs3:
     ) -> tuple[list, list[McaError | None]]:
         """Every axis' robust update result (x, P, report, memory, out, left), None for an axis not
         updated or failed, and each axis' numerical failure; raises on a bad input, nothing changed."""
-        for ax in self.axes:
-            ax._require_init()
-        masks = [_check_mask(m) for m in _three("mask", mask)]
-        if not any(masks):
-            raise BadMaskError("mask is 0 on all three axes")
-        zp, zv, rp, rv = _three("z_p", z_p), _three("z_v", z_v), _three("r_p", r_p), _three("r_v", r_v)
-        rows = [_measurement_rows(m, zp[i], zv[i], rp[i], rv[i]) if m else None for i, m in enumerate(masks)]
+        masks, rows = self._checked_rows(z_p, z_v, r_p, r_v, mask)
         tests: list[tuple[np.ndarray, np.ndarray] | None] = []
         for ax, m, row in zip(self.axes, masks, rows, strict=True):
             if row is None or ax.prior is None:
