@@ -201,7 +201,8 @@ typedef struct {
  * Check a fix's own content (ALGORITHMS.md 8, GPS step 1 without the time test) and read it,
  * missing or non-positive accuracies replaced by the given defaults. Shared by every filter
  * that takes fixes (navigation, INS). Cost: a few compares.
- * @return MCA_ERR_NULL, MCA_ERR_BAD_ARG (fix_type < 2), MCA_ERR_RANGE (lat/lon/altitude, or a
+ * @return MCA_ERR_NULL, MCA_ERR_BAD_ARG (fix_type < 2, or an accuracy after the defaults whose
+ *         square is no finite float > 0, in use or not), MCA_ERR_RANGE (lat/lon/altitude, or a
  *         velocity component flagged present over MCA_FIX_VEL_MAX_MPS), MCA_ERR_NONFINITE (a
  *         velocity flagged present but not finite), MCA_OK (view filled).
  */
