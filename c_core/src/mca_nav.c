@@ -416,7 +416,7 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
 }
 
 /* mca_nav_t.step_flags; PRE: the step test ran on the last fix (so u.step.pre is its) */
-enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u, STEP_PRE = 8u };
+enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u, STEP_PRE = 8u, STEP_RET = 16u };
 
 /* The fuzzy memories' D of N and E raised to at least v (up) or lowered to at most v. */
 MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
@@ -483,6 +483,7 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
             nav->step_flags = (uint8_t)(armed ? nav->step_flags | STEP_ARMED : nav->step_flags & ~STEP_ARMED);
             if (!armed) {
                 step_dk(nav, 1.0f, 0);
+                nav->step_flags |= STEP_RET;
             }
         }
         mca_copyf(nav->u.step.pre, pred, 2u);
@@ -495,7 +496,7 @@ MCA_NOINLINE static void cs_predict(mca_nav_t *nav, uint64_t t_fix, float t, con
 {
     const uint8_t hold = nav->step_hold;
     nav->step_hold = 0u;
-    nav->step_flags &= (uint8_t)~STEP_TESTED; /* this fix's, set by step_test */
+    nav->step_flags &= (uint8_t)~(STEP_TESTED | STEP_RET); /* this fix's, set by step_test */
     mca_cs_inc_t inc[3];
     const mca_cs_inc_t *use[3] = {NULL, NULL, NULL};
     if (nav->cfg.gps_test_imu && nav->aligned && hist_increments(nav, nav->t_lastfix_us, t_fix, inc)) {
@@ -881,7 +882,9 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             /* an axis update that failed numerically (SINGULAR, NONFINITE) left that axis as
              * predicted: the CS is at the fix time all the same (GPS step 4), but the fix makes
              * no attitude observation */
-            if (st == MCA_OK) {
+            if ((nav->step_flags & STEP_RET) != 0u && (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) != 0u) {
+                cs_start(nav, ned, fv.vel_ned_mps);
+            } else if (st == MCA_OK) {
                 gps_attitude(nav, fix, &fv);
             }
         }
