@@ -12,8 +12,8 @@ fix's step 7, choice 22).
 
 Choices where ALGORITHMS.md leaves room (checked against the spec as of its "Times" and
 "Yaw alignment" paragraphs, the robust modes as of its "velocity step test" with the anchor
-before (``v_pre``, *pre*) and the held step's guard, GPS step 1's velocity and accuracy checks and
-GPS step 4's numerically failed axis update, and step by step
+before (``v_pre``, *pre*), the held step's guard and the end of a fault the CS took in, GPS step
+1's velocity and accuracy checks and GPS step 4's numerically failed axis update, and step by step
 against the C core in
 tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
@@ -145,6 +145,20 @@ tests/python/test_nav_golden_vs_c.py)
     fix's (it is step 5's; the lost-GPS decay then runs from this fix's time). ``gps_T`` of a failed axis
     keeps its last successful update's T since the CS filter (re)started (home or re-initialisation),
     NaN if there was none (ALGORITHMS.md 8, output).
+23. The end of a fault the CS took in (GPS step 3): "a fix the test judged the fault's end" is one the
+    step test ran on, did not hold, and found the return or the first fix after a hold, and left
+    disarmed (the one whose N and E ``D`` it lowers to at most 1; an armed release is not an end).
+    "The N or E update of step 4 then leaves its velocity row out of or rejects": that axis' coasting
+    mark ``out`` is set after step 4 (an axis whose update failed numerically keeps the mark it had,
+    choice 22, as the spec says). The
+    restart is choice 17's, after the update: every axis (D included) re-initialised at the fix's
+    position and velocity, memories, coasting marks and priors cleared, ``a_last`` 0, ``n = 0``; the
+    reported ``gps_T`` stay the update's tested T (the axes were updated), and a later failed
+    update reports NaN until one succeeds (the CS restarted). Steps 5-6 are skipped (no compensation,
+    no flagged fix, no roll/pitch or course observation, no count); step 7 is done as after an
+    update: the test ran on the fix, so its velocity is the anchor (``V_a = s_acc^2``) with *pre*
+    set (``v_pre`` the pre-fault anchor carried on, as the test left it). With another axis failing
+    numerically on the same fix, the restart is done and that axis' status then raised.
 """
 
 from __future__ import annotations
@@ -459,6 +473,8 @@ class _StepTest:
     # the anchor before v_a, carried on to the last fix the test ran on and did not hold
     v_pre: np.ndarray = field(default_factory=lambda: np.zeros(2))
     pre: bool = False  # the test ran on the previous fix (v_pre is its)
+    # the test judged this fix the fault's end: the return, or the first fix after a hold, disarmed
+    ended: bool = False
 
 
 class _Fix(NamedTuple):
@@ -883,12 +899,8 @@ class Nav:
         T_us = fx.t_us - self.t_lastfix_us
         T = T_us * 1e-6
         if T_us > self._cs_dt_max_us:
-            # Re-initialise instead (memories and coasting marks cleared, choice 17); compensation
-            # acceleration 0; steps 4-6 skipped; the step test's hold ends.
-            self.cs.init(ned, v0)
-            self.cs_T_set = [False, False, False]
-            self.a_last = (0.0, 0.0, 0.0)
-            self.vst.n = 0
+            # Re-initialise instead (choice 17); steps 4-6 skipped.
+            self._cs_restart(ned, v0)
             self._step7_anchor(fx, has_ne, False, False, has_ne)
             self._remember_fix(fx, has_vel)
             return
@@ -922,12 +934,20 @@ class Nav:
             elif failures[i] is not None and not self.cs_T_set[i]:
                 self.gps_T[i] = math.nan
         failure = next((err for err in failures if err is not None), None)
-        if failure is not None:
+        # GPS step 3, the end of a fault the CS took in: a fix the step test judged the fault's end that
+        # the N or E update left its velocity out of or rejected restarts the CS from it (choice 23).
+        restart = self.vst.ended and any(self.cs.axes[i].out for i in (0, 1))
+        if restart:
+            self._cs_restart(ned, v0)
+        if failure is not None or restart:
             # GPS step 4: the failed axes stay as predicted, the others updated; the CS was predicted
             # to the fix all the same, so step 7 is done (the next fix predicts from this one); steps
-            # 5-6 are not (choice 22). The error is then raised.
+            # 5-6 are not (choice 22). The error is then raised. A restarted CS: steps 5-6 are not
+            # done either, step 7 is (choice 23).
             self._step7(fx, has_vel, held, ran, reports)
-            raise failure
+            if failure is not None:
+                raise failure
+            return
         a_cs = tuple(float(ax.x[2]) for ax in self.cs.axes)
         flagged = any(self._flags_fix(i, reports[i], masks[i]) for i in (0, 1))
         if flagged:
@@ -973,6 +993,16 @@ class Nav:
 
         self._step7(fx, has_vel, held, ran, reports)
 
+    def _cs_restart(self, ned: np.ndarray, v0: tuple[float, ...]) -> None:
+        """A CS re-initialisation at the fix's position ``ned`` and velocity ``v0`` (GPS step 3: after a
+        gap longer than ``dt_max``, and at the end of a fault the CS took in): the axes restart as at
+        home (robust memories, coasting marks and priors cleared, choice 17), the compensation
+        acceleration (``a_last``) is 0, and the velocity step test holds no fix (``n = 0``)."""
+        self.cs.init(ned, v0)
+        self.cs_T_set = [False, False, False]
+        self.a_last = (0.0, 0.0, 0.0)
+        self.vst.n = 0
+
     def _step7(
         self,
         fx: _Fix,
@@ -1009,8 +1039,10 @@ class Nav:
         """The velocity step test of GPS step 3 (ALGORITHMS.md 8): (the test ran, the fix is held).
         A held fix leaves the N and E velocity rows out (Cs3.update_robust's ``vel_held``) and
         raises both detectors' D to at least 2; the return, or the first fix after a hold, not armed,
-        lowers them to at most 1."""
+        lowers them to at most 1 and is the fault's end (``vst.ended``: the CS restarts from it when
+        the N or E update then leaves its velocity out, choice 23)."""
         st = self.vst
+        st.ended = False
         cfg_h = self.cfg.cs_h
         n_ax, e_ax = self.cs.axes[0], self.cs.axes[1]
         inc_n, inc_e = incs[0], incs[1]
@@ -1055,6 +1087,7 @@ class Nav:
         if is_return or holding:
             st.armed = (not is_return) and rr <= k * C_r
             if not st.armed:
+                st.ended = True
                 for ax in (n_ax, e_ax):
                     ax.mem.d_k = min(ax.mem.d_k, 1.0)
         st.n = 0
