@@ -881,7 +881,8 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             st = gps_cs(nav, fix, &fv, ned, t);
             /* an axis update that failed numerically (SINGULAR, NONFINITE) left that axis as
              * predicted: the CS is at the fix time all the same (GPS step 4), but the fix makes
-             * no attitude observation */
+             * no attitude observation. A fix the step test found the fault's end, which N or E
+             * then left its velocity out of, restarts the CS: the CS has the fault in (GPS step 3) */
             if ((nav->step_flags & STEP_RET) != 0u && (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) != 0u) {
                 cs_start(nav, ned, fv.vel_ned_mps);
             } else if (st == MCA_OK) {

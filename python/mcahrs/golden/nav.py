@@ -150,9 +150,9 @@ tests/python/test_nav_golden_vs_c.py)
     disarmed (the one whose N and E ``D`` it lowers to at most 1; an armed release is not an end).
     "The N or E update of step 4 then leaves its velocity row out of or rejects": that axis' coasting
     mark ``out`` is set after step 4 (an axis whose update failed numerically keeps the mark it had,
-    choice 22, as the spec says). The
-    restart is choice 17's, after the update: every axis (D included) re-initialised at the fix's
-    position and velocity, memories, coasting marks and priors cleared, ``a_last`` 0, ``n = 0``; the
+    choice 22, as the spec says). The restart is choice 17's, after the update: every axis (D
+    included) re-initialised at the fix's position and velocity, memories, coasting marks and priors
+    cleared, ``a_last`` 0, ``n = 0``; the
     reported ``gps_T`` stay the update's tested T (the axes were updated), and a later failed
     update reports NaN until one succeeds (the CS restarted). Steps 5-6 are skipped (no compensation,
     no flagged fix, no roll/pitch or course observation, no count); step 7 is done as after an
