@@ -13,7 +13,9 @@ from __future__ import annotations
 from fractions import Fraction
 from math import factorial
 
-N_TERMS = 24  # enough for |x| <= 2: the first dropped term is below 1e-9 of the sum
+# the most terms mca_cs.c's series_terms() asks for (x in [1, 2)): the first dropped term is below
+# 2^-27 of the sum there; more would be flash that is never read (mca_cs.c checks the count)
+N_TERMS = 20
 
 
 def exp_coef(a: int, k: int) -> Fraction:

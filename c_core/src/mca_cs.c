@@ -95,14 +95,19 @@ float mca_cs_maneuver_var(const mca_cs_config_t *cfg, float abar)
 /* Terms of the series that keep the dropped tail below 2^-27 of the value for every entry,
  * for 0 <= x < MCA_CS_SERIES_X (measured from the exact rational coefficients of
  * scripts/gen_singer_series.py; the Van Loan test covers every band). */
+#define SERIES_TERMS_MAX 20u
 static size_t series_terms(float x)
 {
-    return x <= 0.05f ? 5u : x <= 0.2f ? 8u : x <= 0.5f ? 10u : x <= 1.0f ? 14u : 20u;
+    return x <= 0.05f ? 5u : x <= 0.2f ? 8u : x <= 0.5f ? 10u : x <= 1.0f ? 14u : SERIES_TERMS_MAX;
 }
+/* The generated tables hold exactly the terms series_terms can ask for: one more would be flash
+ * never read. */
+typedef char mca_cs_series_len_ok[(MCA_CS_SERIES_TERMS == SERIES_TERMS_MAX) ? 1 : -1];
 
-/* Horner evaluation of sum_{k<n} c[k] x^k. */
-static float series(const float *c, float x, size_t n)
+/* Horner evaluation of sum_{k<n} c[k] x^k, n = series_terms(x). */
+static float series(const float *c, float x)
 {
+    const size_t n = series_terms(x);
     float s = 0.0f;
     for (size_t k = n; k-- > 0;) {
         s = s * x + c[k];
@@ -121,11 +126,10 @@ static void singer_q_em1(float alpha, float t, float s2, float em1, float q33[9]
     if (x < MCA_CS_SERIES_X) {
         /* q_ij = q T^p / 2 * g_ij(x)/x^p, series of scripts/gen_singer_series.py */
         const float t2 = t * t, t3 = t2 * t;
-        const size_t n = series_terms(x);
-        q11 = 0.5f * qc * t3 * t2 * series(mca_cs_series_g11, x, n);
-        q12 = 0.5f * qc * t2 * t2 * series(mca_cs_series_g12, x, n);
-        q13 = 0.5f * qc * t3 * series(mca_cs_series_g13, x, n);
-        q22 = 0.5f * qc * t3 * series(mca_cs_series_g22, x, n);
+        q11 = 0.5f * qc * t3 * t2 * series(mca_cs_series_g11, x);
+        q12 = 0.5f * qc * t2 * t2 * series(mca_cs_series_g12, x);
+        q13 = 0.5f * qc * t3 * series(mca_cs_series_g13, x);
+        q22 = 0.5f * qc * t3 * series(mca_cs_series_g22, x);
     } else {
         /* DESIGN.md 3, exact Singer forms; no cancellation worth a bit for x >= 2 */
         const float e = 1.0f + em1, e2 = e * e;
@@ -166,7 +170,7 @@ static void transition_nz(const mca_cs_config_t *cfg, float t, float s2, float p
     phi[0] = 1.0f;
     phi[1] = t;
     /* Phi13 = (alpha T - 1 + e)/alpha^2 = T^2 (x - 1 + e)/x^2 */
-    phi[2] = (x < MCA_CS_SERIES_X) ? t * t * series(mca_cs_series_phi13, x, series_terms(x))
+    phi[2] = (x < MCA_CS_SERIES_X) ? t * t * series(mca_cs_series_phi13, x)
                                    : (x + em1) / (alpha * alpha);
     phi[6] = 1.0f;
     phi[7] = -em1 / alpha; /* (1 - e)/alpha */
