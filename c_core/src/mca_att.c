@@ -97,7 +97,8 @@ mca_status_t mca_att_propagate(mca_att_t *att, const float gyro[3], float dt)
     return MCA_OK;
 }
 
-void mca_att_propagate_nocheck(mca_att_t *att, const float gyro[3], float dt)
+/* Not inlined into mca_nav_imu: 8 B of flash less. */
+MCA_NOINLINE void mca_att_propagate_nocheck(mca_att_t *att, const float gyro[3], float dt)
 {
     const float w[3] = {gyro[0] - att->bias_rps[0], gyro[1] - att->bias_rps[1], gyro[2] - att->bias_rps[2]};
     const float rv[3] = {w[0] * dt, w[1] * dt, w[2] * dt};

@@ -1,5 +1,6 @@
 /* Small float32 linear algebra and quaternions. See mca_math.h. */
 #include "mcahrs/mca_math.h"
+#include "mca_cold.h"
 
 #include <math.h>
 #include <string.h>
@@ -114,7 +115,8 @@ void mca_copyf(float *dst, const float *src, size_t n)
     }
 }
 
-void mca_copy_bytes(void *dst, const void *src, size_t n)
+/* Not inlined into the configuration defaults (cold code): 12 B of flash less. */
+MCA_NOINLINE void mca_copy_bytes(void *dst, const void *src, size_t n)
 {
     unsigned char *d = (unsigned char *)dst;
     const unsigned char *s = (const unsigned char *)src;

@@ -73,14 +73,16 @@ MCA_COLD void mca_nav_config_multirotor(mca_nav_config_t *c)
 
 /* A configured duration in integer microseconds (ALGORITHMS.md 8, Times). Durations are
  * checked to be far below 71 minutes, so uint32: one vcvt on the M4F, where float <-> 64-bit
- * integer conversions are library calls through soft double. */
-static uint32_t us(float s)
+ * integer conversions are library calls through soft double. Not inlined: its constants and
+ * conversion at each of its nine call sites cost 108 B of flash more than the calls. */
+MCA_NOINLINE static uint32_t us(float s)
 {
     return (uint32_t)(s * 1e6f + 0.5f);
 }
 
-/* Seconds from a to b (b >= a) on the IMU clock, saturating at 71 minutes (uint32 us). */
-static float span_s(uint64_t a, uint64_t b)
+/* Seconds from a to b (b >= a) on the IMU clock, saturating at 71 minutes (uint32 us). Not
+ * inlined: the 64-bit difference and saturation at its five call sites cost 80 B more. */
+MCA_NOINLINE static float span_s(uint64_t a, uint64_t b)
 {
     const uint64_t d = b - a;
     return (float)(d > (uint64_t)UINT32_MAX ? UINT32_MAX : (uint32_t)d) * 1e-6f;
@@ -237,8 +239,10 @@ static const mca_hist_entry_t *hist_at(const mca_nav_t *nav, uint16_t oldest, ui
 
 /* Position k (0 = oldest) of the first entry whose time is >= t32, hist_count if none. Entry
  * times increase strictly (one push per >= MCA_HIST_DT_US), so a binary search on the
- * wrap-safe signed differences of the low 32 bits (the ring spans < 2 s) does it. */
-static uint16_t hist_lower_bound(const mca_nav_t *nav, uint16_t oldest, uint32_t t32)
+ * wrap-safe signed differences of the low 32 bits (the ring spans < 2 s) does it. Not inlined
+ * into its two callers (24 B); hist_at stays inlined in its loop (as a call it cost ~220
+ * instructions on the longest GPS step). */
+MCA_NOINLINE static uint16_t hist_lower_bound(const mca_nav_t *nav, uint16_t oldest, uint32_t t32)
 {
     uint16_t lo = 0u, hi = nav->hist_count;
     while (lo < hi) {
@@ -276,7 +280,8 @@ static const mca_hist_entry_t *hist_find(const mca_nav_t *nav, int64_t t)
     return (after->t_us - t32) < (t32 - before->t_us) ? after : before;
 }
 
-static const mca_hist_entry_t *hist_newest(const mca_nav_t *nav)
+/* Newest entry; NULL when empty. Not inlined into its three callers (20 B). */
+MCA_NOINLINE static const mca_hist_entry_t *hist_newest(const mca_nav_t *nav)
 {
     if (nav->hist_count == 0u) {
         return NULL;
@@ -342,8 +347,9 @@ static mca_status_t yaw_obs(mca_nav_t *nav, float psi_m, float r, const float q_
     return st;
 }
 
-/* No yaw observation in the last 10 s of IMU time (always so with no yaw source). */
-static int yaw_unobserved(const mca_nav_t *nav)
+/* No yaw observation in the last 10 s of IMU time (always so with no yaw source). Not inlined
+ * into its two callers (8 B). */
+MCA_NOINLINE static int yaw_unobserved(const mca_nav_t *nav)
 {
     return nav->cfg.yaw_source == MCA_YAW_NONE || !nav->have_yaw_obs ||
            nav->t_imu_us - nav->t_lastyaw_us > (uint64_t)YAW_STALE_US;

@@ -102,8 +102,10 @@ static int memory_ok(const mca_robust_state_t *rs)
  * index (ALGORITHMS.md 5 does not say what happens when m changes between updates, e.g. a CS
  * axis with position-only then position+velocity fixes): row i < m is updated, rows >= m
  * keep their values, and "first update" means the first of the memory (started), so a row
- * first seen later starts from the initial zero mean and variance with forgetting. */
-static void akf_row(const mca_robust_state_t *rs, float b, size_t i, float nu, float *r_new, float *s_new)
+ * first seen later starts from the initial zero mean and variance with forgetting. Not inlined
+ * into its two callers: 36 B of flash less. */
+MCA_NOINLINE static void akf_row(const mca_robust_state_t *rs, float b, size_t i, float nu, float *r_new,
+                                 float *s_new)
 {
     if (rs->started == 0u) {
         *r_new = nu; /* first update of a memory */
@@ -354,9 +356,10 @@ static float igg_weight(float s, float k0, float k1)
  * c anyway (m^2 sqrtf, m <= 6). With a full R only R_ii is replaced, as written: the
  * off-diagonal R_ij of a down-weighted row stay (a larger diagonal keeps R positive definite).
  * "detected" is any w_i < 1 as computed (an s a hair above k0 whose weight rounds to 1.0f
- * does not count). */
-static void plan_igg(mca_plan_t *pl, const mca_robust_config_t *rc, size_t m, const float *r, const float *nu,
-                     float *c, float *d, float *w)
+ * does not count). Not inlined into update_general, whose frame and register pressure it
+ * otherwise adds to: 28 B of flash less. */
+MCA_NOINLINE static void plan_igg(mca_plan_t *pl, const mca_robust_config_t *rc, size_t m, const float *r,
+                                  const float *nu, float *c, float *d, float *w)
 {
     unsigned weighted = 0u;
     for (size_t i = 0; i < m; ++i) {
