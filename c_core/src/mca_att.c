@@ -68,6 +68,17 @@ MCA_COLD void mca_att_init_nocheck(mca_att_t *att, const mca_att_config_t *cfg, 
     mca_robust_state_init(&att->rs);
 }
 
+/* q_nb <- normalize(q_nb (x) q(rv)): the gyro step and the error-state correction. One copy for
+ * both (the correction is inlined into its one caller otherwise). */
+MCA_NOINLINE static void rotate_by(mca_att_t *att, const float rv[3])
+{
+    float dq[4], qn[4];
+    mca_quat_from_rotvec(dq, rv);
+    mca_quat_mul(qn, att->q_nb, dq);
+    mca_quat_normalize(qn);
+    memcpy(att->q_nb, qn, sizeof(qn));
+}
+
 /* out = A M, A = I + [[0, r2, -r1], [-r2, 0, r0], [r1, -r0, 0]] = I - [r x] (r = w dt, the error
  * state's first-order rotation), M 3 x 3 read with row stride rs and column stride cs (6, 1: a
  * block of the 6 x 6 P; 1, 3: the transpose of a row-major 3 x 3); out row-major. Two
@@ -102,11 +113,7 @@ MCA_NOINLINE void mca_att_propagate_nocheck(mca_att_t *att, const float gyro[3],
 {
     const float w[3] = {gyro[0] - att->bias_rps[0], gyro[1] - att->bias_rps[1], gyro[2] - att->bias_rps[2]};
     const float rv[3] = {w[0] * dt, w[1] * dt, w[2] * dt};
-    float dq[4], qn[4];
-    mca_quat_from_rotvec(dq, rv);
-    mca_quat_mul(qn, att->q_nb, dq);
-    mca_quat_normalize(qn);
-    memcpy(att->q_nb, qn, sizeof(qn));
+    rotate_by(att, rv);
     /* F = [[A, -I dt], [0, I]], A = I - [w x] dt. P = F P F^T + Qd, written out by blocks
      * [[P11, P12], [P21, P22]] so no 6x6 temporaries are needed:
      *   P11' = A P11 A^T - dt (A P12 + P21 A^T) + dt^2 P22
@@ -146,11 +153,7 @@ MCA_NOINLINE void mca_att_propagate_nocheck(mca_att_t *att, const float gyro[3],
 /* Apply the error-state correction dx (ALGORITHMS.md 7). */
 static void correct(mca_att_t *att, const float dx[6])
 {
-    float dq[4], qn[4];
-    mca_quat_from_rotvec(dq, dx);
-    mca_quat_mul(qn, att->q_nb, dq);
-    mca_quat_normalize(qn);
-    memcpy(att->q_nb, qn, sizeof(qn));
+    rotate_by(att, dx);
     for (size_t i = 0; i < 3u; ++i) {
         att->bias_rps[i] += dx[3u + i];
     }
