@@ -355,20 +355,20 @@ MCA_NOINLINE static int yaw_unobserved(const mca_nav_t *nav)
            nav->t_imu_us - nav->t_lastyaw_us > (uint64_t)YAW_STALE_US;
 }
 
-/* dp += v o + a o^2 / 2 with v the running dv, then dv += a o (one ring interval). */
-static void integrate(mca_cs_inc_t inc[3], const float a[3], float o)
+/* One ring interval of o_us microseconds at the NED acceleration of history entry e,
+ * a = C_nb(q) f + [0, 0, g] (DESIGN.md 2): dp += v o + a o^2 / 2 with v the running dv, then
+ * dv += a o. One function for the entries and the hold past the newest (60 B less flash than
+ * the rotation inlined at both). */
+static void integrate(const mca_nav_t *nav, const mca_hist_entry_t *e, int32_t o_us, mca_cs_inc_t inc[3])
 {
+    float a[3];
+    mca_quat_rotate(a, e->q_nb, e->f_b_mps2);
+    a[2] += nav->g_mps2;
+    const float o = (float)o_us * 1e-6f;
     for (size_t i = 0; i < 3u; ++i) {
         inc[i].dp_m += inc[i].dv_mps * o + 0.5f * a[i] * o * o;
         inc[i].dv_mps += a[i] * o;
     }
-}
-
-/* NED acceleration of a history entry: C_nb(q) f + [0, 0, g] (DESIGN.md 2). */
-static void entry_acc(const mca_nav_t *nav, const mca_hist_entry_t *e, float a[3])
-{
-    mca_quat_rotate(a, e->q_nb, e->f_b_mps2);
-    a[2] += nav->g_mps2;
 }
 
 /* IMU velocity and position increments over (t0, t1] from the history ring into inc[i].dv_mps
@@ -391,7 +391,6 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
         inc[i].dp_m = 0.0f;
         inc[i].dv_mps = 0.0f;
     }
-    float a[3];
     /* from the entry before the first one ending after t0 (k0 >= 1: the oldest ends at or before t0) */
     const uint16_t k0 = hist_lower_bound(nav, oldest, (uint32_t)t0 + 1u);
     int32_t prev = (int32_t)(hist_at(nav, oldest, (uint16_t)(k0 - 1u))->t_us - t1_32);
@@ -407,16 +406,14 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
         if (e->saturated) {
             return 0;
         }
-        entry_acc(nav, e, a);
-        integrate(inc, a, (float)(hi - lo) * 1e-6f);
+        integrate(nav, e, hi - lo, inc);
     }
     if (prev < 0) {
         const mca_hist_entry_t *e = hist_newest(nav);
         if (-prev > (int32_t)MCA_HIST_DT_US || e->saturated) {
             return 0;
         }
-        entry_acc(nav, e, a);
-        integrate(inc, a, (float)(-prev) * 1e-6f);
+        integrate(nav, e, -prev, inc);
     }
     return 1;
 }
