@@ -612,12 +612,7 @@ MCA_NOINLINE static int axis_update_shared(mca_cs_axis_t *ax, const float p_post
     }
     mca_copyf(ax->x, x, MCA_CS_NX);
     mca_copyf(ax->p, p_post, MCA_CS_NX * MCA_CS_NX);
-    ax->rs.n_reject = 0u; /* the memory as a plain update leaves it */
-    for (size_t i = 0; i < m; ++i) {
-        ax->rs.n_removed[i] = 0u;
-    }
-    ax->rs.t_stat = t_stat;
-    ax->rs.detected = 0u;
+    mca_kf_plain_memory(&ax->rs, m, t_stat); /* the memory as a plain update leaves it */
     ax->aid.valid = 0u;
     ax->aid.out = 0u;
     return 1;
