@@ -709,6 +709,32 @@ MCA_NOINLINE static float white_part(float acc, float white)
     return (white > 0.0f && white < acc) ? white : acc;
 }
 
+/* The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4), axis i (N, E),
+ * after the predict and before the update; x0 the CS position before the predict. A jump of
+ * the fix (its position change less the CS's predicted one) beyond chi2_1(1e-4) of two fixes' R,
+ * or beyond a quarter of the material bound, is summed, and the sum forgets over 5 tau_p. 1 when the fix is beyond the receiver error's
+ * wandering from the CS (nu^2 > chi2_1(1e-4) (sigma_p^2 + R)) while the jumps summed are within
+ * half of nu: the fixes are back where they were, the CS is not. */
+MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, float x0, float t)
+{
+    const mca_cs_axis_t *ax = &nav->cs.axis[i];
+    const float g = mca_chi2_quantile(1u, MCA_CHI2_1E4);
+    const float sp = ax->cfg.sigma_p_m;
+    const float b = g * (sp * sp + r);
+    const float jump = z - nav->pos_prev[i] - (ax->x[0] - x0); /* NaN after a start: no jump */
+    float e = nav->pos_jump[i];
+    /* a jump is beyond two fixes' white error, and every quarter of the material bound is one:
+     * R taken as all white (no receiver model) would otherwise hide a material fault */
+    if (jump * jump > (2.0f * g * r < 0.25f * b ? 2.0f * g * r : 0.25f * b)) {
+        e += jump;
+    }
+    e -= e * (t / (5.0f * ax->cfg.tau_p_s));
+    nav->pos_jump[i] = e;
+    nav->pos_prev[i] = z;
+    const float nu = z - ax->x[0] - ax->x[3];
+    return nu * nu > b && 4.0f * e * e <= nu * nu;
+}
+
 /* GPS steps 2-4 of a fix within dt_max of the last one (ALGORITHMS.md 8): the CS predict to
  * the fix and the three axis updates. Its own frame, so the attitude observations after it do
  * not carry its arrays on their (deeper) call chain. */
@@ -730,7 +756,17 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
      * finite floats > 0; a white part in use is below its accuracy, so its square is finite, and
      * at worst 0, which the update takes: H P H^T > 0) and the masks are well formed: nothing of
      * mca_cs3_update's checks is left to make. */
+    const float x0[2] = {nav->cs.axis[0].x[0], nav->cs.axis[1].x[0]};
     cs_predict(nav, fix->t_us, t, fv);
+    /* the end of a position fault the CS took in (GPS step 4): the modes that take a long fault
+     * in (not plain, which handles none, nor fuzzy rows, which holds the position row out) */
+    int pos_end = 0;
+    for (size_t i = 0; i < 2u; ++i) {
+        const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
+        if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !(rc->mode == (uint8_t)MCA_ROBUST_FUZZY && rc->fuzzy_reject == 2u)) {
+            pos_end |= pos_return(nav, i, ned[i], rp[i], x0[i], t);
+        }
+    }
     /* No report (T is read from the axis memory; N and E can then share one covariance
      * update). An axis can fail only numerically, and then it is left unchanged
      * (mca_cs_axis_update is atomic) and keeps its T. */
@@ -740,6 +776,8 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
             nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat; /* NaN until an update succeeds */
         }
     }
+    const int vel_end = (nav->step_flags & STEP_RET) != 0u && (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) != 0u;
+    nav->step_flags = (uint8_t)(vel_end || pos_end ? nav->step_flags | STEP_RET : nav->step_flags & ~STEP_RET);
     return st;
 }
 
@@ -844,6 +882,10 @@ static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
         nav->acc_comp_n[i] = 0.0f;
         nav->cs.axis[i].rs.t_stat = NAN;
     }
+    for (size_t i = 0; i < 2u; ++i) { /* the position return rule's memory (GPS step 4) */
+        nav->pos_prev[i] = NAN;
+        nav->pos_jump[i] = 0.0f;
+    }
 }
 
 mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
@@ -885,8 +927,10 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             /* an axis update that failed numerically (SINGULAR, NONFINITE) left that axis as
              * predicted: the CS is at the fix time all the same (GPS step 4), but the fix makes
              * no attitude observation. A fix the step test found the fault's end, which N or E
-             * then left its velocity out of, restarts the CS: the CS has the fault in (GPS step 3) */
-            if ((nav->step_flags & STEP_RET) != 0u && (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) != 0u) {
+             * then left its velocity out of, restarts the CS: the CS has the fault in (GPS step 3);
+             * so does a fix back where the fixes were before a position fault the CS took in
+             * (GPS step 4; gps_cs sets STEP_RET for both) */
+            if ((nav->step_flags & STEP_RET) != 0u) {
                 cs_start(nav, ned, fv.vel_ned_mps);
             } else if (st == MCA_OK) {
                 gps_attitude(nav, fix, &fv);

@@ -166,6 +166,9 @@ typedef struct {
     float grav_rows[6];
     float grav_r;
     float last_gps_t[3];
+    float pos_prev[2];       /**< N, E: the last fix's position (NaN: none; mca_nav.c, GPS step 4) */
+    float pos_jump[2];       /**< N, E: the fixes' position jumps summed since the CS started,
+                                  less what 5 tau_p forgot (GPS step 4) */
     uint32_t n_grav_obs;
     uint32_t n_grav_skip;
 } mca_nav_t;
