@@ -178,6 +178,13 @@ CAR_SPIKE_OFFSETS = ((40.0, 0, -0.5, 0.0), (40.0, 1, 0.2, 0.0), (55.0, 0, 0.3, -
 # CS leaves its velocity out of: the CS restarts from it (no alarm after it, and no roll/pitch attempt
 # at it). Without the restart the CS alarmed on every clean fix to the end of the recording.
 CAR_GUARD_BOTH_FAULTS = ((10.1, 30.1, 38.0, 4.7, 120.0),)
+# The end of a position fault the CS took in (GPS step 4): a 100 s, 30 m horizontal position fault (N 18,
+# E -24 m, velocity clean; bench_outliers.py's long fault) over 20-120 s of the car's cruise, braking,
+# stop and pull-away, with the receiver model. FTA and IGG-III take it in within a few fixes (the GPS-error
+# state holds it); the fixes' jump at its start stays ~70 % in J, so at the first clean fix (120.0 s)
+# the jump back leaves J within half of the innovation on N and E, and the CS restarts from that fix
+# (its position moves 26 m there; measured on seeds 1-3, and with AKF and fuzzy reject or inflate too).
+CAR_POS_FAULT = ((20.0, 120.0, 30.0, 0.0, 306.87),)
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -322,6 +329,21 @@ CASES: dict[str, Case] = {
         receiver_model=True,
         gnss_faults=CAR_GUARD_BOTH_FAULTS,
         tol=TOL_GUARD_BOTH,
+    ),
+    # The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4; CAR_POS_FAULT). IGG-III's
+    # steep weights through the fault reach 2.2e-3 m/s, 1.2e-3 m/s^2, 2.6e-3 relative on the CS P at the
+    # pull-away of 82 s (within TOL_IGG; 1e-5 after the restart); FTA stays within TOL.
+    "fta_car_pos_fault_rx": Case(
+        "car_accel_brake", "ground", 140.0, profile="fta", receiver_model=True, gnss_faults=CAR_POS_FAULT
+    ),
+    "igg3_car_pos_fault_rx": Case(
+        "car_accel_brake",
+        "ground",
+        140.0,
+        profile="igg3",
+        receiver_model=True,
+        gnss_faults=CAR_POS_FAULT,
+        tol=TOL_IGG,
     ),
 }
 
@@ -718,6 +740,32 @@ def test_guard_burst_of_both_ends_with_a_cs_restart_on_both_sides() -> None:
         t = g["t_us"] * 1e-6
         assert np.all(on[(t > t0 + 0.5) & (t < t_last)])
         assert not np.any(on[t > t_last + 0.25])
+
+
+@pytest.mark.parametrize("name", ["fta_car_pos_fault_rx", "igg3_car_pos_fault_rx"])
+def test_long_position_fault_ends_with_a_cs_restart_at_the_same_fix_on_both_sides(name: str) -> None:
+    """The CAR_POS_FAULT cases reach the rule they are for (ALGORITHMS.md 8, GPS step 4, the end of a
+    position fault the CS took in): the CS, which took the 30 m fault in, restarts from the first clean
+    fix after it, on both sides, and at no other fix but home. A CS (re-)initialisation sets the N
+    position variance to ``p0_var_m2`` (section 2), which no update lands on: the fixes whose step leaves
+    it there are the restarts."""
+    case = CASES[name]
+    rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording
+    c, g = _runs(name)
+    p0 = _configs(case, rec)[1].cs_h.p0_var_m2
+    row = np.searchsorted(g["t_us"], rec.gnss["t_rx_us"].astype(np.int64), side="right")  # after each fix
+    ok = row < len(g["t_us"])
+    restarts = [
+        np.flatnonzero(ok)[np.isclose(p[row[ok], 0].astype(np.float64), p0, rtol=1e-6, atol=0.0)].tolist()
+        for p in (c["cs_var"], g["cs_P_diag"])
+    ]
+    t1 = case.gnss_faults[0][1]
+    first_clean = int(np.flatnonzero(rec.gnss["t_us"].astype(np.int64) >= round(t1 * 1e6))[0])
+    assert restarts[1] == [0, first_clean]  # home, then the end of the fault
+    assert restarts[0] == restarts[1]
+    # the CS had the fault in: the restart moves its horizontal position by most of the 30 m
+    r = row[first_clean]
+    assert np.hypot(*(g["pos_ned"][r, :2] - g["pos_ned"][r - 1, :2])) > 15.0
 
 
 @pytest.mark.parametrize("axis", [0, 2])

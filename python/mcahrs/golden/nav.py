@@ -13,8 +13,8 @@ fix's step 7, choice 22).
 Choices where ALGORITHMS.md leaves room (checked against the spec as of its "Times" and
 "Yaw alignment" paragraphs, the robust modes as of its "velocity step test" with the anchor
 before (``v_pre``, *pre*), the held step's guard and the end of a fault the CS took in, GPS step
-1's velocity and accuracy checks and GPS step 4's numerically failed axis update, and step by step
-against the C core in
+1's velocity and accuracy checks, GPS step 4's numerically failed axis update and its end of a position
+fault the CS took in, and step by step against the C core in
 tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
@@ -159,6 +159,21 @@ tests/python/test_nav_golden_vs_c.py)
     update: the test ran on the fix, so its velocity is the anchor (``V_a = s_acc^2``) with *pre*
     set (``v_pre`` the pre-fault anchor carried on, as the test left it). With another axis failing
     numerically on the same fix, the restart is done and that axis' status then raised.
+24. The end of a position fault the CS took in (GPS step 4): N and E each by their own robust config
+    (both ``cs_h``'s), the rule's axes those whose mode is FTA, AKF, IGG-III or fuzzy with
+    ``fuzzy_reject`` 0 or 1. ``z`` is the fix's NED position on the axis, ``p_0`` / ``p`` the CS
+    position before / after step 3's predict (coasting or not), ``eps_p`` the predicted GPS-error
+    state, ``T`` the fix interval, ``R`` the receiver model's position variance (``h_acc^2`` without
+    it). The bullets in the spec's order: the jump is added (when ``z_prev`` is not NaN and past the
+    bound), then ``J`` decays (this fix's jump included), then ``z_prev = z``, then the return test
+    with that ``J``; it also runs while ``z_prev`` is NaN (``J`` is then 0: a material innovation on
+    the first fix after a (re-)initialisation returns). The return is decided before the update and
+    acted on after it: the restart is choice 23's (every axis re-initialised at the fix, memories,
+    coasting marks, priors, ``a_last``, ``n = 0``), which also sets ``z_prev`` NaN and ``J = 0``, as the
+    home start and both other restarts do (``_cs_restart``); the ``z_prev = z`` of this fix is not
+    kept. Steps 5-6 are skipped, step 7 is done as after an update (the anchor: the test did not run,
+    and the restarted axes' coasting marks are clear), and an axis' numerical failure on the same fix is
+    raised after it. On a step 1 error, or an input check of step 4, the memory is as it was.
 """
 
 from __future__ import annotations
@@ -240,6 +255,8 @@ FLAG_ALARM_N = 1 << 7  # the N axis' fuzzy alarm after the last fix; << 1: E, <<
 FLAG_LEVEL = 0.01  # GPS step 6: FTA, AKF and fuzzy flag a fix whose tested T exceeds chi2_m(this)
 STEP_LEVEL_FAIL = 1e-4  # GPS step 3, velocity step test: chi2_2(this) with no fix held, and the raw step
 STEP_LEVEL_HELD = 0.005  # ... chi2_2(this) while fixes are held
+POS_RETURN_LEVEL = 1e-4  # GPS step 4, the end of a position fault the CS took in: chi2_1(this)
+POS_JUMP_FORGET = 5.0  # ... the sum of the jumps decays over this many tau_p
 
 G_DEFAULT = 9.80665  # gravity before home when not configured
 FIX_VEL_MAX_MPS = 1000.0  # MCA_FIX_VEL_MAX_MPS: a larger fix velocity component is RANGE (GPS step 1)
@@ -477,6 +494,14 @@ class _StepTest:
     ended: bool = False
 
 
+@dataclass
+class _PosJumps:
+    """The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4): N and E's memory."""
+
+    z_prev: np.ndarray = field(default_factory=lambda: np.full(2, math.nan))  # the last fix's position
+    J: np.ndarray = field(default_factory=lambda: np.zeros(2))  # the sum of the fixes' jumps
+
+
 class _Fix(NamedTuple):
     t_us: int
     lat_e7: int
@@ -614,6 +639,7 @@ class Nav:
         self.att_mem = RobustState()
         self.t_flag_us: int | None = None
         self.vst = _StepTest()
+        self.jumps = _PosJumps()
 
     # ----------------------------------------------------------------------------------
     # IMU step
@@ -883,12 +909,10 @@ class Nav:
         # Step 2: first fix sets home.
         if self.home is None:
             home_alt = fx.alt_mm if has_alt else 0
-            self.cs.init((0.0, 0.0, 0.0), v0)
-            self.cs_T_set = [False, False, False]
+            self._cs_restart(np.zeros(3), v0)
             self.home = (fx.lat_e7, fx.lon_e7, home_alt)
             if cfg.gravity_mps2 == 0.0:
                 self.g = geo.normal_gravity_e7(fx.lat_e7, home_alt)
-            self.a_last = (0.0, 0.0, 0.0)
             self._remember_fix(fx, has_vel)
             return
 
@@ -911,19 +935,21 @@ class Nav:
         masks = (MASK_POS | vel_mask, MASK_POS | vel_mask, d_mask)
         r_h = _white(fx.h_acc, self.cfg.gps_pos_white_m) ** 2
         r_p = (r_h, r_h, _white(fx.v_acc, self.cfg.gps_alt_white_m) ** 2)
-        saved = copy.deepcopy((self.cs, self.vst))
+        saved = copy.deepcopy((self.cs, self.vst, self.jumps))
+        p_0 = [float(ax.x[0]) for ax in self.cs.axes[:2]]  # N, E positions before the predict
         try:
             # Step 3's velocity step test (it may hold the fix and move the N, E detectors' D), then
             # the predict, plain or coasting, with the IMU-aided test priors.
             ran, held = self._velocity_step_test(fx, T, incs, has_ne)
             self.cs.predict_aided(T, incs)
+            returned = self._position_return(ned, T, r_h, p_0)
             # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5); its inputs were bounded at
             # step 1, so only an axis update failing numerically (SINGULAR, NONFINITE) is an error here.
             reports, failures = self.cs.update_robust_partial(
                 z_p=ned, z_v=fx.vel, r_p=r_p, r_v=(fx.s_acc**2,) * 3, mask=masks, vel_held=held
             )
         except McaError:
-            self.cs, self.vst = saved
+            self.cs, self.vst, self.jumps = saved
             raise
         # The reported T is the tested one (GPS step 3, section 5); an axis whose update failed reports
         # its last successful update's since the CS (re)started, NaN if none (choice 22).
@@ -936,14 +962,16 @@ class Nav:
         failure = next((err for err in failures if err is not None), None)
         # GPS step 3, the end of a fault the CS took in: a fix the step test judged the fault's end that
         # the N or E update left its velocity out of or rejected restarts the CS from it (choice 23).
-        restart = self.vst.ended and any(self.cs.axes[i].out for i in (0, 1))
+        # GPS step 4, the end of a position fault the CS took in: N or E returned (choice 24), the same
+        # restart.
+        restart = (self.vst.ended and any(self.cs.axes[i].out for i in (0, 1))) or returned
         if restart:
             self._cs_restart(ned, v0)
         if failure is not None or restart:
             # GPS step 4: the failed axes stay as predicted, the others updated; the CS was predicted
             # to the fix all the same, so step 7 is done (the next fix predicts from this one); steps
             # 5-6 are not (choice 22). The error is then raised. A restarted CS: steps 5-6 are not
-            # done either, step 7 is (choice 23).
+            # done either, step 7 is (choices 23, 24).
             self._step7(fx, has_vel, held, ran, reports)
             if failure is not None:
                 raise failure
@@ -994,14 +1022,47 @@ class Nav:
         self._step7(fx, has_vel, held, ran, reports)
 
     def _cs_restart(self, ned: np.ndarray, v0: tuple[float, ...]) -> None:
-        """A CS re-initialisation at the fix's position ``ned`` and velocity ``v0`` (GPS step 3: after a
-        gap longer than ``dt_max``, and at the end of a fault the CS took in): the axes restart as at
-        home (robust memories, coasting marks and priors cleared, choice 17), the compensation
-        acceleration (``a_last``) is 0, and the velocity step test holds no fix (``n = 0``)."""
+        """A CS (re-)initialisation at the fix's position ``ned`` and velocity ``v0`` (GPS step 2 at home;
+        step 3 after a gap longer than ``dt_max`` and at the end of a fault the CS took in; step 4 at the
+        end of a position fault the CS took in): the axes start afresh (robust memories, coasting marks
+        and priors cleared, choice 17), the compensation acceleration (``a_last``) is 0, the velocity
+        step test holds no fix (``n = 0``), and the N and E jump memory is cleared (``z_prev`` NaN,
+        ``J = 0``)."""
         self.cs.init(ned, v0)
         self.cs_T_set = [False, False, False]
         self.a_last = (0.0, 0.0, 0.0)
         self.vst.n = 0
+        self.jumps = _PosJumps()
+
+    def _position_return(self, ned: np.ndarray, T: float, r_p: float, p_0: list[float]) -> bool:
+        """ALGORITHMS.md 8, GPS step 4, "The end of a position fault the CS took in" (choice 24): on N and
+        E, after the predict and before the update, an axis whose robust mode is neither plain nor fuzzy
+        rows sums the fix's position jumps the prediction did not make, ``j = (z - z_prev) - (p - p_0)``,
+        past ``min(2 chi2_1(1e-4) R, B / 4)`` (``R`` = ``r_p``, the position variance after the receiver
+        model; ``B`` the material bound below) into
+        ``J``, decays ``J`` by ``T / (5 tau_p)`` and keeps ``z_prev = z``; it *returns* when the
+        innovation ``nu = z - (p + eps_p)`` is material, ``nu^2 > chi2_1(1e-4) (sigma_p^2 + R)``, and
+        ``4 J^2 <= nu^2``. Returns whether N or E returned (the caller restarts the CS after step 4).
+        The axes of other modes leave ``z_prev`` and ``J`` as they are."""
+        k = chi2_quantile(POS_RETURN_LEVEL, 1)
+        mem = self.jumps
+        returned = False
+        for i, ax in enumerate(self.cs.axes[:2]):
+            rc, c = ax.cfg.robust, ax.cfg
+            if rc.mode == "plain" or (rc.mode == "fuzzy" and rc.fuzzy_reject == FUZZY_ROWS):
+                continue
+            z, p = float(ned[i]), float(ax.x[0])
+            material = k * (c.sigma_p_m**2 + r_p)  # beyond what the receiver's own wandering explains
+            j = (z - mem.z_prev[i]) - (p - p_0[i])  # NaN after a (re-)initialisation: no jump
+            # beyond two fixes' white error; a quarter of the material bound always is a jump
+            if not math.isnan(j) and j * j > min(2.0 * k * r_p, material / 4.0):
+                mem.J[i] += j
+            mem.J[i] -= mem.J[i] * T / (POS_JUMP_FORGET * c.tau_p_s)
+            mem.z_prev[i] = z
+            nu = z - (p + float(ax.x[3]))
+            if nu * nu > material and 4.0 * mem.J[i] ** 2 <= nu * nu:
+                returned = True
+        return returned
 
     def _step7(
         self,
