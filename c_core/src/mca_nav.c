@@ -418,7 +418,8 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
     return 1;
 }
 
-/* mca_nav_t.step_flags; PRE: the step test ran on the last fix (so u.step.pre is its) */
+/* mca_nav_t.step_flags; PRE: the step test ran on the last fix (so u.step.pre is its); RET: this
+ * fix restarts the CS, the end of a fault it took in (set by gps_cs: GPS steps 3 and 4) */
 enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u, STEP_PRE = 8u, STEP_RET = 16u };
 
 /* The fuzzy memories' D of N and E raised to at least v (up) or lowered to at most v. */
@@ -710,11 +711,12 @@ MCA_NOINLINE static float white_part(float acc, float white)
 }
 
 /* The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4), axis i (N, E),
- * after the predict and before the update; x0 the CS position before the predict. A jump of
- * the fix (its position change less the CS's predicted one) beyond chi2_1(1e-4) of two fixes' R,
- * or beyond a quarter of the material bound, is summed, and the sum forgets over 5 tau_p. 1 when the fix is beyond the receiver error's
- * wandering from the CS (nu^2 > chi2_1(1e-4) (sigma_p^2 + R)) while the jumps summed are within
- * half of nu: the fixes are back where they were, the CS is not. */
+ * after the predict and before the update; x0 the CS position before the predict. A jump of the
+ * fix (its position change less the CS's predicted one) beyond chi2_1(1e-4) of two fixes' R, or
+ * beyond a quarter of the material bound, is summed, and the sum forgets over 5 tau_p. 1 when
+ * the fix is material, beyond the receiver error's wandering from the CS (nu^2 > chi2_1(1e-4)
+ * (sigma_p^2 + R)), while the jumps summed are within half of nu: the fixes are back where they
+ * were, the CS is not. */
 MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, float x0, float t)
 {
     const mca_cs_axis_t *ax = &nav->cs.axis[i];
@@ -763,7 +765,8 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     int pos_end = 0;
     for (size_t i = 0; i < 2u; ++i) {
         const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
-        if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !(rc->mode == (uint8_t)MCA_ROBUST_FUZZY && rc->fuzzy_reject == 2u)) {
+        const int rows = rc->mode == (uint8_t)MCA_ROBUST_FUZZY && rc->fuzzy_reject == 2u;
+        if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !rows) {
             pos_end |= pos_return(nav, i, ned[i], rp[i], x0[i], t);
         }
     }
