@@ -1039,11 +1039,11 @@ class Nav:
         E, after the predict and before the update, an axis whose robust mode is neither plain nor fuzzy
         rows sums the fix's position jumps the prediction did not make, ``j = (z - z_prev) - (p - p_0)``,
         past ``min(2 chi2_1(1e-4) R, B / 4)`` (``R`` = ``r_p``, the position variance after the receiver
-        model; ``B`` the material bound below) into
-        ``J``, decays ``J`` by ``T / (5 tau_p)`` and keeps ``z_prev = z``; it *returns* when the
-        innovation ``nu = z - (p + eps_p)`` is material, ``nu^2 > chi2_1(1e-4) (sigma_p^2 + R)``, and
-        ``4 J^2 <= nu^2``. Returns whether N or E returned (the caller restarts the CS after step 4).
-        The axes of other modes leave ``z_prev`` and ``J`` as they are."""
+        model; ``B`` the material bound below) into ``J``, decays ``J`` by ``T / (5 tau_p)`` and keeps
+        ``z_prev = z``; it *returns* when the innovation ``nu = z - (p + eps_p)`` is material,
+        ``nu^2 > B = chi2_1(1e-4) (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``. Returns whether N or E
+        returned (the caller restarts the CS after step 4). The axes of other modes leave ``z_prev``
+        and ``J`` as they are."""
         k = chi2_quantile(POS_RETURN_LEVEL, 1)
         mem = self.jumps
         returned = False
