@@ -13,6 +13,7 @@
 #define DEG 0.0174532925199433f
 #define G0 9.80665f
 #define YAW_STALE_US 10000000u
+#define STEP_HOLD_US 20000000u /* the velocity step test's hold in the whole-update modes (GPS step 3) */
 
 /* compile-time check: the shared scratch fits both updates */
 typedef char mca_nav_ws_fits_cs[(MCA_NAV_WS_LEN >= MCA_CS_WS_LEN) ? 1 : -1];
@@ -418,8 +419,8 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
     return 1;
 }
 
-/* The fuzzy-rows profile (ALGORITHMS.md 5: fuzzy, fuzzy_reject 2): the step test runs for it, the
- * position return rule does not (GPS steps 3, 4). fix_flagged spells it out with IGG-III: through
+/* The fuzzy-rows profile (ALGORITHMS.md 5: fuzzy, fuzzy_reject 2): the step test's hold leaves its
+ * velocity rows out, the position return rule does not run for it (GPS steps 3, 4). fix_flagged spells it out with IGG-III: through
  * this helper there it cost 8 B of flash and 8 instructions a GPS step. */
 static inline int fuzzy_rows(const mca_robust_config_t *rc)
 {
@@ -440,12 +441,13 @@ MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
 }
 
 /* The velocity step test (ALGORITHMS.md 8, GPS step 3): the fix's N/E velocity against the
- * anchor carried on by the IMU increments. A step holds the anchor and leaves both velocity
- * rows out (the N/E pair's rows, with the alarm) until the fix passes again (and is nearer the
- * anchor than the held step), steps back, or the whole-update guard's count of fixes has
- * passed. */
+ * anchor carried on by the IMU increments. A step holds the anchor until the fix passes again
+ * (and is nearer the anchor than the held step), steps back, or the guard has passed: in fuzzy
+ * rows the whole-update guard's count of fixes, and the hold leaves both velocity rows out (the
+ * N/E pair's rows, with the alarm); in the other modes STEP_HOLD_US of fixes, and a held fix
+ * gives no course observation (GPS step 6). t_us: this fix's interval. */
 MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, const mca_cs_inc_t inc[3], float var_h,
-                                   float coast_h, float t, uint8_t hold)
+                                   float coast_h, float t, uint8_t hold, uint64_t t_us)
 {
     const float *v = fv->vel_ned_mps;
     float pred[2], s[2], e2 = 0.0f, r2 = 0.0f, dot = 0.0f, n0 = 0.0f, ds = 0.0f, pp = 0.0f;
@@ -477,7 +479,9 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
     const int ret = fail && dot < 0.0f && dot * dot >= 0.5f * q * n0 && fabsf(q - 1.25f * n0) <= n0 &&
                     (hold != 0u ? r2 > g4 * c_raw : (nav->step_flags & STEP_ARMED) != 0u);
     nav->step_flags |= STEP_TESTED;
-    if (fail && !ret && hold < nav->cs.axis[0].cfg.robust.reject_reset_n) {
+    const int rows = fuzzy_rows(&nav->cs.axis[0].cfg.robust);
+    const int guard = rows ? hold < nav->cs.axis[0].cfg.robust.reject_reset_n : hold * t_us < STEP_HOLD_US;
+    if (fail && !ret && guard) {
         if (hold == 0u) {
             mca_copyf(nav->u.step.s0, s, 2u);
             nav->step_flags &= (uint8_t)~STEP_ARMED;
@@ -485,16 +489,20 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
         mca_copyf(nav->u.step.v, pred, 2u);
         nav->u.step.var += coast_h * t * t;
         nav->step_hold = (uint8_t)(hold + 1u);
-        nav->cs.axis[0].rs.started |= MCA_CS_VEL;
-        nav->cs.axis[1].rs.started |= MCA_CS_VEL;
-        step_dk(nav, 2.0f, 1);
+        if (rows) {
+            nav->cs.axis[0].rs.started |= MCA_CS_VEL;
+            nav->cs.axis[1].rs.started |= MCA_CS_VEL;
+            step_dk(nav, 2.0f, 1);
+        }
     } else {
         if (ret || hold != 0u) {
             /* a release with the fault still in (no raw step) arms the return; else the fault ended */
             const int armed = !ret && r2 <= g * c_raw;
             nav->step_flags = (uint8_t)(armed ? nav->step_flags | STEP_ARMED : nav->step_flags & ~STEP_ARMED);
             if (!armed) {
-                step_dk(nav, 1.0f, 0);
+                if (rows) {
+                    step_dk(nav, 1.0f, 0);
+                }
                 nav->step_flags |= STEP_RET;
             }
         }
@@ -525,7 +533,7 @@ MCA_NOINLINE static void cs_predict(mca_nav_t *nav, uint64_t t_fix, float t, con
          * constant acceleration, or test its rows against its own lagging prediction */
         const int rows_out = nav->cfg.cs_h.coast != 0u && (mca_robust_left_out(&nav->cs.axis[0].rs, MCA_CS_NZ) ||
                                                            mca_robust_left_out(&nav->cs.axis[1].rs, MCA_CS_NZ));
-        const int yaw_ok = !yaw_unobserved(nav) || (rows_out && nav->have_yaw_obs != 0u);
+        const int yaw_ok = !yaw_unobserved(nav) || ((rows_out || hold != 0u) && nav->have_yaw_obs != 0u);
         /* the increments of finite history entries are finite; a variance that overflowed
          * (P_att huge) leaves the fix with the CS filter's own test rather than refusing it */
         const int aid_h = yaw_ok && isfinite(var_h + coast_h);
@@ -534,10 +542,9 @@ MCA_NOINLINE static void cs_predict(mca_nav_t *nav, uint64_t t_fix, float t, con
             inc[i].coast_var_m2ps4 = i < 2u ? coast_h : c2;
             use[i] = (i == 2u || aid_h) ? &inc[i] : NULL;
         }
-        const mca_robust_config_t *rc = &nav->cs.axis[0].cfg.robust;
-        if (aid_h && fuzzy_rows(rc) && (fv->vel_mask & 3u) == 3u &&
+        if (aid_h && nav->cs.axis[0].cfg.robust.mode != (uint8_t)MCA_ROBUST_PLAIN && (fv->vel_mask & 3u) == 3u &&
             (nav->step_flags & STEP_ANCHOR) != 0u) {
-            step_test(nav, fv, inc, var_h, coast_h, t, hold);
+            step_test(nav, fv, inc, var_h, coast_h, t, hold, t_fix - nav->t_lastfix_us);
         }
     }
     /* 0 < t <= dt_max (mca_nav_gps); the increments of finite history entries are finite and
@@ -867,8 +874,9 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
     } else if (observe) {
         gravity_obs(nav, e, acc, r_acc); /* failures are counted skips */
     }
-    /* the course observation does not depend on the roll/pitch attempt (GPS step 6) */
-    if (nav->aligned && !flagged) {
+    /* the course observation does not depend on the roll/pitch attempt; a fix the step test held
+     * has the suspect velocity too (GPS step 6) */
+    if (nav->aligned && !flagged && nav->step_hold == 0u) {
         const float speed = sqrtf(vel[0] * vel[0] + vel[1] * vel[1]);
         if (nav->cfg.yaw_source == MCA_YAW_COG && (vmask & 3u) == 3u && speed >= nav->cfg.cog_min_speed_mps &&
             speed > 0.0f) {
@@ -887,7 +895,6 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
 static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
 {
     mca_cs3_init_nocheck(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel); /* checked at init and entry */
-    nav->step_hold = 0u;
     for (size_t i = 0; i < 3u; ++i) {
         nav->acc_comp_n[i] = 0.0f;
         nav->cs.axis[i].rs.t_stat = NAN;
@@ -931,6 +938,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
         mca_geo_to_ned_nocheck(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : nav->home.alt_mm, ned);
         const float t = span_s(nav->t_lastfix_us, fix->t_us);
         if (t > nav->cfg.cs_h.dt_max_s || t > nav->cfg.cs_v.dt_max_s) {
+            nav->step_hold = 0u; /* no increments carry the anchor over the gap */
             cs_start(nav, ned, fv.vel_ned_mps);
         } else {
             st = gps_cs(nav, fix, &fv, ned, t);
@@ -939,7 +947,8 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
              * no attitude observation. A fix the step test found the fault's end, which N or E
              * then left its velocity out of, restarts the CS: the CS has the fault in (GPS step 3);
              * so does a fix back where the fixes were before a position fault the CS took in
-             * (GPS step 4; gps_cs sets STEP_RET for both) */
+             * (GPS step 4; gps_cs sets STEP_RET for both). The step test's hold goes on: the
+             * first is released, and a position return in a burst of both is no velocity end */
             if ((nav->step_flags & STEP_RET) != 0u) {
                 cs_start(nav, ned, fv.vel_ned_mps);
             } else if (st == MCA_OK) {

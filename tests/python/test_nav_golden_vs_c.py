@@ -330,6 +330,25 @@ CASES: dict[str, Case] = {
         gnss_faults=CAR_GUARD_BOTH_FAULTS,
         tol=TOL_GUARD_BOTH,
     ),
+    # The velocity step test in a whole-update mode (ALGORITHMS.md 8, GPS step 3, and step 6): FTA on the
+    # burst of rows_car_burst18_rx (same seed; course over ground the car's yaw source). The test holds
+    # every burst fix (90, 40.0-57.8 s: 18 s, under the other modes' n T < 20 s guard) and releases at the
+    # first clean one, disarmed; the hold changes no update and raises no alarm, but the held fixes give
+    # no course observation: the C's yaw_unobserved flag (set at 41.9 s, 10 s after the braking's last
+    # course) clears at 58.3 s, at 43.7 s without the burst (its yaw variance grows 3.4e-4 -> 1.3e-3 rad^2
+    # over the burst, shrinks to 8.9e-5 without it; golden yaw observations 165, 235 with the test not run
+    # in FTA). The held fixes from 42 s are aided by step 3's exception alone (n > 0). The golden model
+    # without the course rule, without that exception, or with the test in fuzzy rows only parts from the
+    # C at 43.5 s (11 observation decisions; gps_T 0.97 relative; both).
+    "fta_car_burst_rx": Case(
+        "car_accel_brake",
+        "ground",
+        66.0,
+        seed=2,
+        profile="fta",
+        receiver_model=True,
+        gnss_faults=CAR_BURST_FAULTS,
+    ),
     # The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4; CAR_POS_FAULT). IGG-III's
     # steep weights through the fault reach 2.2e-3 m/s, 1.2e-3 m/s^2, 2.6e-3 relative on the CS P at the
     # pull-away of 82 s (within TOL_IGG; 1e-5 after the restart); FTA stays within TOL.

@@ -12,7 +12,8 @@ fix's step 7, choice 22).
 
 Choices where ALGORITHMS.md leaves room (checked against the spec as of its "Times" and
 "Yaw alignment" paragraphs, the robust modes as of its "velocity step test" with the anchor
-before (``v_pre``, *pre*), the held step's guard and the end of a fault the CS took in, GPS step
+before (``v_pre``, *pre*), the held step's guard, the end of a fault the CS took in and the test
+in every mode but plain (a hold in the modes other than fuzzy rows: no course observation), GPS step
 1's velocity and accuracy checks, GPS step 4's numerically failed axis update and its end of a position
 fault the CS took in, and step by step against the C core in
 tests/python/test_nav_golden_vs_c.py)
@@ -88,8 +89,10 @@ tests/python/test_nav_golden_vs_c.py)
     newest entry's acceleration for at most ``MCA_HIST_DT_US``; any saturated entry that overlaps
     the interval, or one held, turns the aid off for all axes.
 15. The IMU-aided test's exception (GPS step 3): "the N or E update before left a row out" is the
-    axis' last update rejected, or some row of it left out (``CsAxis.left``); "once any yaw
-    observation was made": a yaw observation or the yaw alignment since the reset.
+    axis' last update rejected, or some row of it left out (``CsAxis.left``), with ``cs_h.coast`` set;
+    "while the velocity step test holds (``n > 0`` before this fix)": the count as the last fix left it
+    (a fix the test held, and no gap re-initialisation since), in every robust mode, ``coast`` set or
+    not; "once any yaw observation was made": a yaw observation or the yaw alignment since the reset.
 16. The AKF ``q_scale`` (section 5, step 3: "applied by the filter to its process noise at its
     next predict") is the memory's current value, applied at every predict until an update changes
     it: on a CS axis it multiplies the whole Q of section 2 (Singer block, q44, q55), ordinary or
@@ -97,8 +100,10 @@ tests/python/test_nav_golden_vs_c.py)
     block (section 7) at every propagation.
 17. A CS re-initialisation (GPS step 3, ``T > dt_max``) restarts the axes as at home: their robust
     memories, coasting marks and priors are cleared (the attitude memory and the last flagged fix
-    are kept); the step test's ``n = 0``, and at step 7 (when aligned) the fix's N, E velocity is the
-    anchor when it has one (no update left it out), with *pre* clear (the test did not run on it).
+    are kept); the step test's ``n = 0`` (no increments carry the anchor over the gap), and at step 7
+    (when aligned) the fix's N, E velocity is the anchor when it has one (no update left it out), with
+    *pre* clear (the test did not run on it). Only this re-initialisation sets ``n = 0``: the restarts
+    at the end of a fault (choices 23, 24) leave ``n`` as it is (``_cs_restart`` does not touch it).
 18. Coasting marks (section 2): after each update an axis is ``out`` when it was rejected or left
     out the velocity row it had (this update's rows: the memory's ``n_removed`` of its rows, which an
     update that keeps a row sets to 0; a lock-up reset applies every row); an axis not updated
@@ -110,15 +115,24 @@ tests/python/test_nav_golden_vs_c.py)
     present) at weight 0; fuzzy rows: the axis' coasting mark after the update; plain: never. The
     ``tau_a`` hold is ``t_fix - t_lastflag < tau_a_us`` of ``cs_h`` (the flagged fix itself
     included), integer us; it holds GPS-step roll/pitch observations only (lost-GPS ones are not
-    fixes), and the course observation is held for the flagged fix alone.
-20. Velocity step test (GPS step 3): it runs with ``cs_h`` in fuzzy rows, N and E both aided (both
-    have increments), N and E velocity in the fix, and an anchor; ``dv``, ``qa``, ``qc`` are N's and
-    E's (the same variances). "It is the return when it fails and [the reverse-step conditions],
-    and, while holding, [the raw step back], otherwise *armed*": with no fix held, the reverse step
-    is the return only when armed. The hold count compared with ``reject_reset_n`` is the one
-    before this fix. A fix neither held, nor the return, nor the first after a hold leaves *armed*
-    as it was. The detectors' ``D`` changes are made before the predict and the updates (so the N/E
-    pair's plans see them). ``v_last`` is the previous accepted fix's velocity (held or not). "The
+    fixes), and the course observation is held for the flagged fix alone. A fix the velocity step test
+    held (choice 20) gives no course observation either, in every mode, and is not flagged by it: its
+    roll/pitch observation and the ``tau_a`` hold go by the flag alone (in fuzzy rows a held fix's
+    velocity rows are out, so it is flagged anyway).
+20. Velocity step test (GPS step 3): it runs with ``cs_h`` in any robust mode but plain (its
+    ``robust.mode``; N and E share it), N and E both aided (both have increments), N and E velocity
+    in the fix, and an anchor; ``dv``, ``qa``, ``qc`` are N's and E's (the same variances). "It is the
+    return when it fails and [the reverse-step conditions], and, while holding, [the raw step back],
+    otherwise *armed*": with no fix held, the reverse step is the return only when armed. The guard
+    takes the hold count before this fix: in fuzzy rows ``n < reject_reset_n``; in the other modes
+    ``n T < 20 s`` as a time comparison in integer us (ALGORITHMS.md 8, Times), ``n * T_us <
+    20_000_000`` with ``T_us`` this fix's interval. What a hold does: in fuzzy rows the N and E
+    velocity rows go out (``vel_held``, choice 21) and the detectors' ``D`` rise to at least 2, and a
+    disarmed release lowers them to at most 1; in the other modes neither (the update and its
+    memories are those of the fix not held), and the held fix gives no course observation (choice
+    19). A fix neither held, nor the return, nor the first after a hold leaves *armed* as it was. The
+    detectors' ``D`` changes are made before the predict and the updates (so the N/E pair's plans see
+    them). ``v_last`` is the previous accepted fix's velocity (held or not). "The
     test ran on it": its conditions held, whatever its outcome; otherwise the anchor needs both N
     and E with the velocity row applied (their coasting marks clear after the update). The anchor
     before: with no fix held, the agreement ``|v_fix - (v_pre + dv)|^2 <= k C`` uses the same ``k``
@@ -147,12 +161,13 @@ tests/python/test_nav_golden_vs_c.py)
     NaN if there was none (ALGORITHMS.md 8, output).
 23. The end of a fault the CS took in (GPS step 3): "a fix the test judged the fault's end" is one the
     step test ran on, did not hold, and found the return or the first fix after a hold, and left
-    disarmed (the one whose N and E ``D`` it lowers to at most 1; an armed release is not an end).
+    disarmed (in fuzzy rows the one whose N and E ``D`` it lowers to at most 1; an armed release is not
+    an end), in every mode the test runs in.
     "The N or E update of step 4 then leaves its velocity row out of or rejects": that axis' coasting
     mark ``out`` is set after step 4 (an axis whose update failed numerically keeps the mark it had,
     choice 22, as the spec says). The restart is choice 17's, after the update: every axis (D
     included) re-initialised at the fix's position and velocity, memories, coasting marks and priors
-    cleared, ``a_last`` 0, ``n = 0``; the
+    cleared, ``a_last`` 0, ``n`` as the test left it (0: the hold has just ended, or none was); the
     reported ``gps_T`` stay the update's tested T (the axes were updated), and a later failed
     update reports NaN until one succeeds (the CS restarted). Steps 5-6 are skipped (no compensation,
     no flagged fix, no roll/pitch or course observation, no count); step 7 is done as after an
@@ -169,7 +184,8 @@ tests/python/test_nav_golden_vs_c.py)
     with that ``J``; it also runs while ``z_prev`` is NaN (``J`` is then 0: a material innovation on
     the first fix after a (re-)initialisation returns). The return is decided before the update and
     acted on after it: the restart is choice 23's (every axis re-initialised at the fix, memories,
-    coasting marks, priors, ``a_last``, ``n = 0``), which also sets ``z_prev`` NaN and ``J = 0``, as the
+    coasting marks, priors, ``a_last``; the step test's ``n`` as it is, so a fix it held stays held and
+    step 7 writes no anchor), which also sets ``z_prev`` NaN and ``J = 0``, as the
     home start and both other restarts do (``_cs_restart``); the ``z_prev = z`` of this fix is not
     kept. Steps 5-6 are skipped, step 7 is done as after an update (the anchor: the test did not run,
     and the restarted axes' coasting marks are clear), and an axis' numerical failure on the same fix is
@@ -255,6 +271,7 @@ FLAG_ALARM_N = 1 << 7  # the N axis' fuzzy alarm after the last fix; << 1: E, <<
 FLAG_LEVEL = 0.01  # GPS step 6: FTA, AKF and fuzzy flag a fix whose tested T exceeds chi2_m(this)
 STEP_LEVEL_FAIL = 1e-4  # GPS step 3, velocity step test: chi2_2(this) with no fix held, and the raw step
 STEP_LEVEL_HELD = 0.005  # ... chi2_2(this) while fixes are held
+STEP_HOLD_MAX_US = 20_000_000  # ... the guard of the modes other than fuzzy rows: n T < 20 s (integer us)
 POS_RETURN_LEVEL = 1e-4  # GPS step 4, the end of a position fault the CS took in: chi2_1(this)
 POS_JUMP_FORGET = 5.0  # ... the sum of the jumps decays over this many tau_p
 
@@ -693,9 +710,11 @@ class Nav:
             n = self.win_n
             f_mean = tuple(v / n for v in self.win_f)
             w_mean = tuple(v / n for v in self.win_w)
-            still = (math.hypot(*w_mean) <= cfg.init_gyro_still_rps
-                     and abs(math.hypot(*f_mean) - self.g) <= cfg.init_acc_still_mps2
-                     and not self._moving_by_gps())
+            still = (
+                math.hypot(*w_mean) <= cfg.init_gyro_still_rps
+                and abs(math.hypot(*f_mean) - self.g) <= cfg.init_acc_still_mps2
+                and not self._moving_by_gps()
+            )
             if still:
                 self._align(t_us, f_mean, w_mean, att_var)
                 return
@@ -923,8 +942,10 @@ class Nav:
         T_us = fx.t_us - self.t_lastfix_us
         T = T_us * 1e-6
         if T_us > self._cs_dt_max_us:
-            # Re-initialise instead (choice 17); steps 4-6 skipped.
+            # Re-initialise instead (choice 17); steps 4-6 skipped. No increments carry the step
+            # test's anchor over the gap: no fix held (n = 0).
             self._cs_restart(ned, v0)
+            self.vst.n = 0
             self._step7_anchor(fx, has_ne, False, False, has_ne)
             self._remember_fix(fx, has_vel)
             return
@@ -938,15 +959,20 @@ class Nav:
         saved = copy.deepcopy((self.cs, self.vst, self.jumps))
         p_0 = [float(ax.x[0]) for ax in self.cs.axes[:2]]  # N, E positions before the predict
         try:
-            # Step 3's velocity step test (it may hold the fix and move the N, E detectors' D), then
-            # the predict, plain or coasting, with the IMU-aided test priors.
+            # Step 3's velocity step test (it may hold the fix; in fuzzy rows move the N, E detectors'
+            # D), then the predict, plain or coasting, with the IMU-aided test priors.
             ran, held = self._velocity_step_test(fx, T, incs, has_ne)
             self.cs.predict_aided(T, incs)
             returned = self._position_return(ned, T, r_h, p_0)
             # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5); its inputs were bounded at
             # step 1, so only an axis update failing numerically (SINGULAR, NONFINITE) is an error here.
             reports, failures = self.cs.update_robust_partial(
-                z_p=ned, z_v=fx.vel, r_p=r_p, r_v=(fx.s_acc**2,) * 3, mask=masks, vel_held=held
+                z_p=ned,
+                z_v=fx.vel,
+                r_p=r_p,
+                r_v=(fx.s_acc**2,) * 3,
+                mask=masks,
+                vel_held=held and self._step_test_rows(),  # the other modes: the hold changes no update
             )
         except McaError:
             self.cs, self.vst, self.jumps = saved
@@ -1004,7 +1030,8 @@ class Nav:
             # A yaw error d psi turns the horizontal compensation by d psi (body z as yaw axis).
             r_acc += (a_n[0] ** 2 + a_n[1] ** 2) * float(self.P[2, 2]) / self.g**2
 
-        # Step 6: observations (none of a flagged fix's, no roll/pitch within tau_a of one).
+        # Step 6: observations (none of a flagged fix's, no roll/pitch within tau_a of one, no course
+        # from a held fix).
         if self.aligned:
             if not usable or rp_held:
                 self._grav_skip()
@@ -1016,7 +1043,9 @@ class Nav:
                 else:
                     entry = self.hist[-1] if self.hist else None
                 self._roll_pitch(entry, a_n, r_acc, None)
-            if cfg.yaw_source == YAW_COG and has_ne and not flagged:
+            # no course from a flagged fix, nor from one the velocity step test held (its velocity is
+            # the suspect; in fuzzy rows a held fix is flagged anyway)
+            if cfg.yaw_source == YAW_COG and has_ne and not flagged and not held:
                 self._course_observation(fx)
 
         self._step7(fx, has_vel, held, ran, reports)
@@ -1025,13 +1054,12 @@ class Nav:
         """A CS (re-)initialisation at the fix's position ``ned`` and velocity ``v0`` (GPS step 2 at home;
         step 3 after a gap longer than ``dt_max`` and at the end of a fault the CS took in; step 4 at the
         end of a position fault the CS took in): the axes start afresh (robust memories, coasting marks
-        and priors cleared, choice 17), the compensation acceleration (``a_last``) is 0, the velocity
-        step test holds no fix (``n = 0``), and the N and E jump memory is cleared (``z_prev`` NaN,
-        ``J = 0``)."""
+        and priors cleared, choice 17), the compensation acceleration (``a_last``) is 0, and the N and E
+        jump memory is cleared (``z_prev`` NaN, ``J = 0``). The velocity step test's ``n`` is left as it
+        is (the caller of the gap's re-initialisation sets ``n = 0``; at home it is 0 already)."""
         self.cs.init(ned, v0)
         self.cs_T_set = [False, False, False]
         self.a_last = (0.0, 0.0, 0.0)
-        self.vst.n = 0
         self.jumps = _PosJumps()
 
     def _position_return(self, ned: np.ndarray, T: float, r_p: float, p_0: list[float]) -> bool:
@@ -1098,17 +1126,23 @@ class Nav:
         self, fx: _Fix, T: float, incs: list[AxisInc | None], has_ne: bool
     ) -> tuple[bool, bool]:
         """The velocity step test of GPS step 3 (ALGORITHMS.md 8): (the test ran, the fix is held).
-        A held fix leaves the N and E velocity rows out (Cs3.update_robust's ``vel_held``) and
-        raises both detectors' D to at least 2; the return, or the first fix after a hold, not armed,
-        lowers them to at most 1 and is the fault's end (``vst.ended``: the CS restarts from it when
-        the N or E update then leaves its velocity out, choice 23)."""
+        It runs in every robust mode of ``cs_h`` but plain (choice 20). In fuzzy rows a held fix
+        leaves the N and E velocity rows out (Cs3.update_robust's ``vel_held``, passed by the caller)
+        and raises both detectors' D to at least 2, and the return, or the first fix after a hold, not
+        armed, lowers them to at most 1; in the other modes a hold changes no update and no D (its only
+        effect is the course observation the held fix does not give, GPS step 6, and the aided N and E
+        of the next fix, choice 15). In every mode that disarmed release is the fault's end
+        (``vst.ended``: the CS restarts from it when the N or E update then leaves its velocity out,
+        choice 23)."""
         st = self.vst
         st.ended = False
         cfg_h = self.cfg.cs_h
         n_ax, e_ax = self.cs.axes[0], self.cs.axes[1]
         inc_n, inc_e = incs[0], incs[1]
-        rows_mode = cfg_h.robust.mode == "fuzzy" and cfg_h.robust.fuzzy_reject == FUZZY_ROWS
-        if not (rows_mode and inc_n is not None and inc_e is not None and has_ne and st.anchor):
+        rows_mode = self._step_test_rows()
+        if not (
+            cfg_h.robust.mode != "plain" and inc_n is not None and inc_e is not None and has_ne and st.anchor
+        ):
             st.n = 0
             return False, False
         dv = np.array([inc_n.dv, inc_e.dv])
@@ -1135,25 +1169,39 @@ class Nav:
         reverse = us0 < 0.0 and us0 * us0 >= 0.5 * q * s0n and 0.25 * s0n <= q <= 2.25 * s0n
         stepped_back = rr > chi2_quantile(STEP_LEVEL_FAIL, 2) * C_r
         is_return = fails and reverse and (stepped_back if holding else st.armed)
-        if fails and not is_return and st.n < cfg_h.robust.reject_reset_n:
+        # The guard (with n before this fix): fuzzy rows' whole-update guard, reject_reset_n fixes; the
+        # other modes n T < 20 s, T this fix's interval, compared in integer us (ALGORITHMS.md 8, Times)
+        if rows_mode:
+            guard_open = st.n < cfg_h.robust.reject_reset_n
+        else:
+            guard_open = st.n * int(round(T * 1e6)) < STEP_HOLD_MAX_US
+        if fails and not is_return and guard_open:
             if st.n == 0:
                 st.s0 = s
                 st.armed = False
             st.v_a = v_p
             st.V_a += qc * T * T
             st.n += 1
-            for ax in (n_ax, e_ax):
-                ax.mem.d_k = max(ax.mem.d_k, 2.0)
+            if rows_mode:  # the alarm: the velocity rows go out at step 4 (vel_held)
+                for ax in (n_ax, e_ax):
+                    ax.mem.d_k = max(ax.mem.d_k, 2.0)
             return True, True
         if is_return or holding:
             st.armed = (not is_return) and rr <= k * C_r
             if not st.armed:
                 st.ended = True
-                for ax in (n_ax, e_ax):
-                    ax.mem.d_k = min(ax.mem.d_k, 1.0)
+                if rows_mode:  # the alarm releases at the first clean fix
+                    for ax in (n_ax, e_ax):
+                        ax.mem.d_k = min(ax.mem.d_k, 1.0)
         st.n = 0
         st.v_pre = v_p  # every fix not held
         return True, False
+
+    def _step_test_rows(self) -> bool:
+        """The horizontal CS configuration is fuzzy rows (``fuzzy`` with ``fuzzy_reject`` 2): the velocity
+        step test's hold leaves the N and E velocity rows out and raises the alarm (GPS step 3)."""
+        rc = self.cfg.cs_h.robust
+        return rc.mode == "fuzzy" and rc.fuzzy_reject == FUZZY_ROWS
 
     def _step7_anchor(self, fx: _Fix, has_ne: bool, held: bool, ran: bool, ok: bool) -> None:
         """GPS step 7 for the velocity step test: when aligned and unless the fix was held, its N, E
@@ -1213,9 +1261,11 @@ class Nav:
         qa_v, qc_v = cfg.imu_acc_sigma_mps2**2, cfg.coast_acc_sigma_mps2**2
         qa_h, qc_h = qa_v + att_h, qc_v + att_h
         n_ax, e_ax = self.cs.axes[0], self.cs.axes[1]
-        # yaw observed; or, coasting configured and N or E left a row out, any yaw observation made
+        # yaw observed; or, coasting configured and N or E left a row out, or the velocity step test
+        # holding (n > 0 before this fix, every mode it runs in), any yaw observation made
+        coasting = bool(cfg.cs_h.coast) and (n_ax.left or e_ax.left)
         yaw_ok = not (self.flags() & FLAG_YAW_UNOBSERVED) or (
-            bool(cfg.cs_h.coast) and (n_ax.left or e_ax.left) and self.t_yaw_us is not None
+            (coasting or self.vst.n > 0) and self.t_yaw_us is not None
         )
         aid_h = yaw_ok and math.isfinite(qa_h + qc_h)
         out: list[AxisInc | None] = [
