@@ -420,8 +420,9 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
 }
 
 /* The fuzzy-rows profile (ALGORITHMS.md 5: fuzzy, fuzzy_reject 2): the step test's hold leaves its
- * velocity rows out, the position return rule does not run for it (GPS steps 3, 4). fix_flagged spells it out with IGG-III: through
- * this helper there it cost 8 B of flash and 8 instructions a GPS step. */
+ * velocity rows out, and the position return rule does not run for it (GPS steps 3, 4).
+ * fix_flagged spells it out with IGG-III: through this helper there it cost 8 B of flash and 8
+ * instructions a GPS step. */
 static inline int fuzzy_rows(const mca_robust_config_t *rc)
 {
     return rc->mode == (uint8_t)MCA_ROBUST_FUZZY && rc->fuzzy_reject == 2u;
