@@ -753,6 +753,29 @@ MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, f
     return nu * nu > b && 4.0f * e * e <= nu * nu;
 }
 
+/* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
+ * step 6): FTA, AKF and fuzzy when the mode detected it or its (tested) T exceeds chi2_m(0.01);
+ * IGG-III, which weighs rows, and fuzzy rows (fuzzy_reject 2) when the update left the velocity
+ * row out or was rejected (the axis' aid.out, which mca_cs keeps for coasting; a position left
+ * out while the velocity is applied keeps the CS acceleration). Plain mode never flags. */
+static int fix_flagged(const mca_nav_t *nav, uint8_t vmask)
+{
+    const size_t m = (vmask & 3u) == 3u ? 2u : 1u;
+    for (size_t i = 0; i < 2u; ++i) {
+        const mca_cs_axis_t *ax = &nav->cs.axis[i];
+        const uint8_t mode = ax->cfg.robust.mode;
+        const int by_rows = mode == (uint8_t)MCA_ROBUST_IGG3 ||
+                            (mode == (uint8_t)MCA_ROBUST_FUZZY && ax->cfg.robust.fuzzy_reject == 2u);
+        const int flagged = by_rows ? ax->aid.out != 0u
+                                    : mode != (uint8_t)MCA_ROBUST_PLAIN &&
+                                          (ax->rs.detected != 0u || ax->rs.t_stat > mca_chi2_quantile(m, MCA_CHI2_1E2));
+        if (flagged) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* GPS steps 2-4 of a fix within dt_max of the last one (ALGORITHMS.md 8): the CS predict to
  * the fix and the three axis updates. Its own frame, so the attitude observations after it do
  * not carry its arrays on their (deeper) call chain. */
@@ -794,32 +817,11 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
             nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat; /* NaN until an update succeeds */
         }
     }
-    const int vel_end = (nav->step_flags & STEP_RET) != 0u && (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) != 0u;
+    /* the end of a velocity fault the CS took in (GPS step 3): the step test's end of a fault, which
+     * the CS then flags (in fuzzy rows and IGG-III: N or E left the velocity out) */
+    const int vel_end = (nav->step_flags & STEP_RET) != 0u && fix_flagged(nav, fv->vel_mask);
     nav->step_flags = (uint8_t)(vel_end || pos_end ? nav->step_flags | STEP_RET : nav->step_flags & ~STEP_RET);
     return st;
-}
-
-/* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
- * step 6): FTA, AKF and fuzzy when the mode detected it or its (tested) T exceeds chi2_m(0.01);
- * IGG-III, which weighs rows, and fuzzy rows (fuzzy_reject 2) when the update left the velocity
- * row out or was rejected (the axis' aid.out, which mca_cs keeps for coasting; a position left
- * out while the velocity is applied keeps the CS acceleration). Plain mode never flags. */
-static int fix_flagged(const mca_nav_t *nav, uint8_t vmask)
-{
-    const size_t m = (vmask & 3u) == 3u ? 2u : 1u;
-    for (size_t i = 0; i < 2u; ++i) {
-        const mca_cs_axis_t *ax = &nav->cs.axis[i];
-        const uint8_t mode = ax->cfg.robust.mode;
-        const int by_rows = mode == (uint8_t)MCA_ROBUST_IGG3 ||
-                            (mode == (uint8_t)MCA_ROBUST_FUZZY && ax->cfg.robust.fuzzy_reject == 2u);
-        const int flagged = by_rows ? ax->aid.out != 0u
-                                    : mode != (uint8_t)MCA_ROBUST_PLAIN &&
-                                          (ax->rs.detected != 0u || ax->rs.t_stat > mca_chi2_quantile(m, MCA_CHI2_1E2));
-        if (flagged) {
-            return 1;
-        }
-    }
-    return 0;
 }
 
 /* GPS steps 5-6 after the CS updates: the compensation acceleration, the roll/pitch

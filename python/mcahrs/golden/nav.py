@@ -12,11 +12,11 @@ fix's step 7, choice 22).
 
 Choices where ALGORITHMS.md leaves room (checked against the spec as of its "Times" and
 "Yaw alignment" paragraphs, the robust modes as of its "velocity step test" with the anchor
-before (``v_pre``, *pre*), the held step's guard, the end of a fault the CS took in and the test
-in every mode but plain (a hold in the modes other than fuzzy rows: no course observation), GPS step
-1's velocity and accuracy checks, GPS step 4's numerically failed axis update and its end of a position
-fault the CS took in, and step by step against the C core in
-tests/python/test_nav_golden_vs_c.py)
+before (``v_pre``, *pre*), the held step's guard, the end of a fault the CS took in (its restart in
+every mode the test runs in, when step 6 flags the fix) and the test in every mode but plain (a hold
+in the modes other than fuzzy rows: no course observation), GPS step 1's velocity and accuracy
+checks, GPS step 4's numerically failed axis update and its end of a position fault the CS took
+in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
     ``init_still_s``, ``init_timeout_s``, ``cs_lag_s``, ``imu_dt_max_s``, the CS ``dt_max_s``
@@ -130,8 +130,9 @@ tests/python/test_nav_golden_vs_c.py)
     velocity rows go out (``vel_held``, choice 21) and the detectors' ``D`` rise to at least 2, and a
     disarmed release lowers them to at most 1; in the other modes neither (the update and its
     memories are those of the fix not held), and the held fix gives no course observation (choice
-    19). A fix neither held, nor the return, nor the first after a hold leaves *armed* as it was. The
-    detectors' ``D`` changes are made before the predict and the updates (so the N/E pair's plans see
+    19). The fault's end (a disarmed release) restarts the CS in every mode when step 6 then flags the
+    fix (choice 23). A fix neither held, nor the return, nor the first after a hold leaves *armed* as it
+    was. The detectors' ``D`` changes are made before the predict and the updates (so the N/E pair's plans see
     them). ``v_last`` is the previous accepted fix's velocity (held or not). "The
     test ran on it": its conditions held, whatever its outcome; otherwise the anchor needs both N
     and E with the velocity row applied (their coasting marks clear after the update). The anchor
@@ -162,10 +163,17 @@ tests/python/test_nav_golden_vs_c.py)
 23. The end of a fault the CS took in (GPS step 3): "a fix the test judged the fault's end" is one the
     step test ran on, did not hold, and found the return or the first fix after a hold, and left
     disarmed (in fuzzy rows the one whose N and E ``D`` it lowers to at most 1; an armed release is not
-    an end), in every mode the test runs in.
-    "The N or E update of step 4 then leaves its velocity row out of or rejects": that axis' coasting
-    mark ``out`` is set after step 4 (an axis whose update failed numerically keeps the mark it had,
-    choice 22, as the spec says). The restart is choice 17's, after the update: every axis (D
+    an end), in every mode the test runs in. It restarts the CS when "step 6 then *flags*" the fix: the
+    flag step 6 computes (choice 19) from this fix's N and E updates of step 4, taken after the update
+    and before the restart (which clears the marks and memories it reads), each axis by its own robust
+    configuration (both ``cs_h``'s; the D update flags nothing). In fuzzy rows and IGG-III it is that
+    axis' coasting mark ``out`` set after step 4 ("the N or E update of step 4 leaving its velocity row
+    out or rejecting the update": for IGG-III the same as step 6's rejection or velocity weight 0), and
+    an axis whose update failed numerically keeps the mark it had (choice 22, as the spec says); in FTA,
+    AKF and fuzzy reject or inflate the mode's ``detected`` or its tested ``T > chi2_m(0.01)`` (``m``
+    that update's rows), and a failed axis (no detection, no T) flags nothing. The flag is only the
+    restart's condition: the restarted fix does not become the last flagged one (steps 5-6 are not
+    done), so it starts no ``tau_a`` hold. The restart is choice 17's, after the update: every axis (D
     included) re-initialised at the fix's position and velocity, memories, coasting marks and priors
     cleared, ``a_last`` 0, ``n`` as the test left it (0: the hold has just ended, or none was); the
     reported ``gps_T`` stay the update's tested T (the axes were updated), and a later failed
@@ -987,10 +995,12 @@ class Nav:
                 self.gps_T[i] = math.nan
         failure = next((err for err in failures if err is not None), None)
         # GPS step 3, the end of a fault the CS took in: a fix the step test judged the fault's end that
-        # the N or E update left its velocity out of or rejected restarts the CS from it (choice 23).
+        # step 6 flags (from these step-4 updates, before any restart clears their marks) restarts the CS
+        # from it, in every mode the test runs in (choice 23).
         # GPS step 4, the end of a position fault the CS took in: N or E returned (choice 24), the same
         # restart.
-        restart = (self.vst.ended and any(self.cs.axes[i].out for i in (0, 1))) or returned
+        vel_end = self.vst.ended and any(self._flags_end(i, reports[i], masks[i]) for i in (0, 1))
+        restart = vel_end or returned
         if restart:
             self._cs_restart(ned, v0)
         if failure is not None or restart:
@@ -1122,6 +1132,17 @@ class Nav:
             return bool(self.cs.axes[axis].out)
         return bool(rep.detected) or rep.T > chi2_quantile(FLAG_LEVEL, rep.m)
 
+    def _flags_end(self, axis: int, rep: RobustReport | None, mask: int) -> bool:
+        """GPS step 3, the end of a fault the CS took in: step 6's flag of this fix by a horizontal axis'
+        update (choice 23). In fuzzy rows and IGG-III it is the axis' coasting mark after step 4 (the
+        update left its velocity row out or was rejected; an axis whose update failed numerically keeps
+        the mark it had), in FTA, AKF and fuzzy reject or inflate the mode's detection or its tested
+        ``T`` over ``chi2_m(0.01)`` (:meth:`_flags_fix`; a failed update flags nothing)."""
+        rc = self.cs.axes[axis].cfg.robust
+        if rc.mode == "igg3" or (rc.mode == "fuzzy" and rc.fuzzy_reject == FUZZY_ROWS):
+            return bool(self.cs.axes[axis].out)
+        return self._flags_fix(axis, rep, mask)
+
     def _velocity_step_test(
         self, fx: _Fix, T: float, incs: list[AxisInc | None], has_ne: bool
     ) -> tuple[bool, bool]:
@@ -1132,8 +1153,7 @@ class Nav:
         armed, lowers them to at most 1; in the other modes a hold changes no update and no D (its only
         effect is the course observation the held fix does not give, GPS step 6, and the aided N and E
         of the next fix, choice 15). In every mode that disarmed release is the fault's end
-        (``vst.ended``: the CS restarts from it when the N or E update then leaves its velocity out,
-        choice 23)."""
+        (``vst.ended``: the CS restarts from it when step 6 then flags the fix, choice 23)."""
         st = self.vst
         st.ended = False
         cfg_h = self.cfg.cs_h
