@@ -947,8 +947,8 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             st = gps_cs(nav, fix, &fv, ned, t);
             /* an axis update that failed numerically (SINGULAR, NONFINITE) left that axis as
              * predicted: the CS is at the fix time all the same (GPS step 4), but the fix makes
-             * no attitude observation. A fix the step test found the fault's end, which N or E
-             * then left its velocity out of, restarts the CS: the CS has the fault in (GPS step 3);
+             * no attitude observation. A fix the step test found the fault's end, which the CS
+             * then flags (GPS step 6), restarts the CS: the CS has the fault in (GPS step 3);
              * so does a fix back where the fixes were before a position fault the CS took in
              * (GPS step 4; gps_cs sets STEP_RET for both). The step test's hold goes on: the
              * first is released, and a position return in a burst of both is no velocity end */
