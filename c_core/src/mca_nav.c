@@ -727,19 +727,20 @@ MCA_NOINLINE static float white_part(float acc, float white)
 }
 
 /* The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4), axis i (N, E),
- * after the predict and before the update; x0 the CS position before the predict. A jump of the
- * fix (its position change less the CS's predicted one) beyond chi2_1(1e-4) of two fixes' R, or
- * beyond a quarter of the material bound, is summed, and the sum forgets over 5 tau_p. 1 when
+ * after the predict and before the update; d the position change the fixes' velocities say (or,
+ * without them, the CS's prediction). A jump of the fix (its position change less d) beyond
+ * chi2_1(1e-4) of two fixes' R, or beyond a quarter of the material bound, is summed, and the
+ * sum forgets over 5 tau_p. 1 when
  * the fix is material, beyond the receiver error's wandering from the CS (nu^2 > chi2_1(1e-4)
  * (sigma_p^2 + R)), while the jumps summed are within half of nu: the fixes are back where they
  * were, the CS is not. */
-MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, float x0, float t)
+MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, float d, float t)
 {
     const mca_cs_axis_t *ax = &nav->cs.axis[i];
     const float g = mca_chi2_quantile(1u, MCA_CHI2_1E4);
     const float sp = ax->cfg.sigma_p_m;
     const float b = g * (sp * sp + r);
-    const float jump = z - nav->pos_prev[i] - (ax->x[0] - x0); /* NaN after a start: no jump */
+    const float jump = z - nav->pos_prev[i] - d; /* NaN after a start: no jump */
     float e = nav->pos_jump[i];
     /* a jump is beyond two fixes' white error, and every quarter of the material bound is one:
      * R taken as all white (no receiver model) would otherwise hide a material fault */
@@ -800,12 +801,16 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     const float x0[2] = {nav->cs.axis[0].x[0], nav->cs.axis[1].x[0]};
     cs_predict(nav, fix->t_us, t, fv);
     /* the end of a position fault the CS took in (GPS step 4): the modes that take a long fault
-     * in (not plain, which handles none, nor fuzzy rows, which holds the position row out) */
+     * in (not plain, which handles none, nor fuzzy rows, which holds the position row out); the
+     * fixes' motion from their velocities (the trapezoid): a fault the CS takes in through its
+     * velocity moves the CS prediction, not them */
     int pos_end = 0;
+    const int vv = has_vne && (nav->prev_vel_mask & 3u) == 3u;
     for (size_t i = 0; i < 2u; ++i) {
         const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
         if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !fuzzy_rows(rc)) {
-            pos_end |= pos_return(nav, i, ned[i], rp[i], x0[i], t);
+            const float d = vv ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i]) : nav->cs.axis[i].x[0] - x0[i];
+            pos_end |= pos_return(nav, i, ned[i], rp[i], d, t);
         }
     }
     /* No report (T is read from the axis memory; N and E can then share one covariance
