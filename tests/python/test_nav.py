@@ -970,3 +970,27 @@ def test_the_end_of_a_velocity_burst_the_cs_took_in_restarts_the_cs(profile: str
     print(f"{profile}: off the outlier-free run, end of the burst {burst:.1f} m, after it {after:.1f} m")
     assert burst > 10.0  # the mode took the burst in
     assert after < 4.0
+
+
+def test_the_position_return_counts_jumps_against_the_fixes_velocities() -> None:
+    """ALGORITHMS.md 8, GPS step 4, the jumps: a 100 s position fault of 29 m (N -28, E 9) on the
+    simulated fixed-wing, velocity clean, with the receiver model, under fuzzy inflate. The mode
+    takes the fault in through the CS velocity, slowly, and each fix's CS prediction moves toward
+    it by more than a jump's threshold. Counted against that prediction (until session 24) those
+    moves summed to the onset's jump with the opposite sign, the fault's end was no return, and
+    the position stayed 24.5 m off the outlier-free run for the 19 s after it (measured on the
+    build before). Counted against the fixes' velocities the end is a return and the CS restarts:
+    at most 2.0 m off (measured)."""
+    res = scenario("fixedwing_turns", seed=1, duration_s=300.0)
+    rec, p = res.recording, res.params
+    bad, sel = _with_gnss_fault(rec, 150.0, 250.0, (-28.0, 9.0), (0.0, 0.0))
+    t_s = rec.gnss["t_us"] * 1e-6
+    over = {**core.robust_profile("fuzzy-inflate", p.gps_rate_hz), **_sim_receiver_model(p)}
+    cfg = core.nav_config("fixedwing", **over)
+    run, clean = core.replay(bad, cfg), core.replay(rec, cfg)
+    t_out = run["t_us"].astype(np.int64)
+    at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+    e = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
+    herr = np.hypot(e[:, 0], e[:, 1])
+    assert herr[sel & (t_s >= 200.0)].mean() > 15.0  # the mode took the fault in
+    assert herr[(t_s >= 251.0) & (t_s < 270.0)].max() < 4.0
