@@ -21,7 +21,7 @@ decisions are compared through what the C output exposes: the CS axes' alarms (f
 and skipped (a flagged fix and the ``tau_a`` after it skip them, GPS step 6); a velocity step test
 hold shows as both horizontal alarms and skipped observations. A case whose own tolerances differ
 (``Case.tol``) says why next to them (``TOL_COAST``, ``TOL_COAST_GUARD``, ``TOL_GUARD_BOTH``, ``TOL_IGG``,
-``TOL_AKF``);
+``TOL_AKF``, ``TOL_FTA_INTAKE``);
 a case where the C differs from the spec is an ``xfail(strict=True)`` with the diagnosis
 (``XFAIL``).
 """
@@ -159,6 +159,14 @@ TOL_IGG: dict[str, float] = {"vel_mps": 3e-3, "acc_mps2": 2e-3, "cs_var_rel": 3e
 # P and the gains (measured on akf_car_cs 1.1e-4 relative on the CS P and 4.5e-5 m/s^2; over 90 s,
 # at the braking at 66-69 s, 2.1e-4 and 1.75e-4 m/s^2, 5e-6 m/s^2 away from it; no decision differs).
 TOL_AKF: dict[str, float] = {"acc_mps2": 1e-3, "cs_var_rel": 1e-3}
+# FTA taking a 30 m position fault in at 2 Hz (fta_fixedwing_pos_fault_2hz_rx, FIXEDWING_POS_FAULT_2HZ): E's
+# gain shrunk by gamma = T / chi2_2(1e-4) (15 at 24.0 s, 1.3 at 27.0 s) fix after fix, whose T differs by
+# 1-4e-5 relative, then the fixes of 26.5-27.0 s shrink E's velocity variance 11.5x and 3.9x (4.8 -> 0.012
+# m^2/s^2): the C's expanded Joseph cancels there as after an outage (TOL cs_var_rel). Measured: the CS P
+# 3.8e-6 relative at 23.5 s, doubling a fix to 3.0e-4 (E_vv) at 26.5 s, 2.2e-6 at the next fix; the
+# acceleration 7.2e-5 m/s^2 at 27.1 s, back to 6e-6 after 28 s (seeds 2 and 3: 6.7e-4 / 1.4e-4 and 4.0e-4 /
+# 1.7e-4, seed 2's velocity 3.2e-4 m/s). No decision differs.
+TOL_FTA_INTAKE: dict[str, float] = {"acc_mps2": 3e-4, "cs_var_rel": 1e-3}
 
 # The velocity step test's rules of ALGORITHMS.md 8, GPS step 3 (fuzzy rows, the receiver model, the
 # simulated car; tests/python/test_nav.py's last two tests at short, fast recordings). An 18 s, 1.0 m/s
@@ -185,6 +193,17 @@ CAR_GUARD_BOTH_FAULTS = ((10.1, 30.1, 38.0, 4.7, 120.0),)
 # the jump back leaves J within half of the innovation on N and E, and the CS restarts from that fix
 # (its position moves 26 m there; measured on seeds 1-3, and with AKF and fuzzy reject or inflate too).
 CAR_POS_FAULT = ((20.0, 120.0, 30.0, 0.0, 306.87),)
+# The same rule on a turning vehicle, where its jump definition matters (GPS step 4: j = (z - z_prev) - d,
+# d the trapezoid T (v + v_prev) / 2 of the fixes' N (E) velocities): a 25 s, 30 m position fault (N 15,
+# E -26 m) over 20-45 s of the fixed-wing's first turn (30 deg of bank, 5.7 m/s^2, to ~33 s) and the leg
+# after it, fixes at 2 Hz (T = 0.5 s), FTA with the receiver model (jump bound 1.65 m). The onset's jump
+# stays 92 % in J (13.6 / -24.3 m at 44.5 s), the end's (-15.5 / +24.8 m) leaves J at -1.8 / +0.5 against
+# nu -15.2 / +24.8: N and E return and the CS restarts from the first clean fix (45.0 s, fix 90), on both
+# sides. With the predicted change p - p_0 as d (until session 24) FTA's gamma of 3-6 on N (nu 15-20 m)
+# leaves N on its own prediction through the turn, 2-5 m a fix behind the fixes, and those were summed as
+# jumps: J of N grew 15 -> 74 m, the end left J at +55 / -23 m, no return, no restart to the end (55 s).
+# At the simulator's 5 Hz both definitions restart at the end (the lag a fix stays under the bound).
+FIXEDWING_POS_FAULT_2HZ = ((20.0, 45.0, 30.0, 0.0, 300.0),)
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -375,6 +394,18 @@ CASES: dict[str, Case] = {
         receiver_model=True,
         gnss_faults=CAR_POS_FAULT,
         tol=TOL_IGG,
+    ),
+    # The jumps against the fixes' velocities in a turn (FIXEDWING_POS_FAULT_2HZ): the golden model with the
+    # predicted change as d parts from the C at 45.1 s (no restart; 15 roll/pitch decisions, 24 m).
+    "fta_fixedwing_pos_fault_2hz_rx": Case(
+        "fixedwing_turns",
+        "fixedwing",
+        55.0,
+        {"gps_rate_hz": 2.0},
+        profile="fta",
+        receiver_model=True,
+        gnss_faults=FIXEDWING_POS_FAULT_2HZ,
+        tol=TOL_FTA_INTAKE,
     ),
 }
 
@@ -773,13 +804,15 @@ def test_guard_burst_of_both_ends_with_a_cs_restart_on_both_sides() -> None:
         assert not np.any(on[t > t_last + 0.25])
 
 
-@pytest.mark.parametrize("name", ["fta_car_pos_fault_rx", "igg3_car_pos_fault_rx"])
+@pytest.mark.parametrize(
+    "name", ["fta_car_pos_fault_rx", "igg3_car_pos_fault_rx", "fta_fixedwing_pos_fault_2hz_rx"]
+)
 def test_long_position_fault_ends_with_a_cs_restart_at_the_same_fix_on_both_sides(name: str) -> None:
-    """The CAR_POS_FAULT cases reach the rule they are for (ALGORITHMS.md 8, GPS step 4, the end of a
-    position fault the CS took in): the CS, which took the 30 m fault in, restarts from the first clean
-    fix after it, on both sides, and at no other fix but home. A CS (re-)initialisation sets the N
-    position variance to ``p0_var_m2`` (section 2), which no update lands on: the fixes whose step leaves
-    it there are the restarts."""
+    """The CAR_POS_FAULT and FIXEDWING_POS_FAULT_2HZ cases reach the rule they are for (ALGORITHMS.md 8,
+    GPS step 4, the end of a position fault the CS took in): the CS, which took the 30 m fault in,
+    restarts from the first clean fix after it, on both sides, and at no other fix but home. A CS
+    (re-)initialisation sets the N position variance to ``p0_var_m2`` (section 2), which no update lands
+    on: the fixes whose step leaves it there are the restarts."""
     case = CASES[name]
     rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording
     c, g = _runs(name)

@@ -187,7 +187,12 @@ in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
     ``fuzzy_reject`` 0 or 1. ``z`` is the fix's NED position on the axis, ``p_0`` / ``p`` the CS
     position before / after step 3's predict (coasting or not), ``eps_p`` the predicted GPS-error
     state, ``T`` the fix interval, ``R`` the receiver model's position variance (``h_acc^2`` without
-    it). The bullets in the spec's order: the jump is added (when ``z_prev`` is not NaN and past the
+    it). The jump's ``d`` is ``T (v + v_prev) / 2``, ``v`` this fix's N (E) velocity and ``v_prev`` that
+    of the last fix step 7 remembered (``prev_vel`` with its mask: the home fix, a gap's
+    re-initialisation, a restarted or held fix, or one whose update failed numerically, all reach step
+    7), when both have the NE-velocity flag; ``p - p_0`` otherwise (the spec's "either fix has no N/E
+    velocity"). The first fix after a (re-)start has ``z_prev`` NaN, so no jump whichever ``d``. The
+    bullets in the spec's order: the jump is added (when ``z_prev`` is not NaN and past the
     bound), then ``J`` decays (this fix's jump included), then ``z_prev = z``, then the return test
     with that ``J``; it also runs while ``z_prev`` is NaN (``J`` is then 0: a material innovation on
     the first fix after a (re-)initialisation returns). The return is decided before the update and
@@ -971,7 +976,7 @@ class Nav:
             # D), then the predict, plain or coasting, with the IMU-aided test priors.
             ran, held = self._velocity_step_test(fx, T, incs, has_ne)
             self.cs.predict_aided(T, incs)
-            returned = self._position_return(ned, T, r_h, p_0)
+            returned = self._position_return(ned, T, r_h, p_0, fx.vel[:2] if has_ne else None)
             # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5); its inputs were bounded at
             # step 1, so only an axis update failing numerically (SINGULAR, NONFINITE) is an error here.
             reports, failures = self.cs.update_robust_partial(
@@ -1072,26 +1077,41 @@ class Nav:
         self.a_last = (0.0, 0.0, 0.0)
         self.jumps = _PosJumps()
 
-    def _position_return(self, ned: np.ndarray, T: float, r_p: float, p_0: list[float]) -> bool:
+    def _position_return(
+        self,
+        ned: np.ndarray,
+        T: float,
+        r_p: float,
+        p_0: list[float],
+        v_ne: tuple[float, ...] | None,
+    ) -> bool:
         """ALGORITHMS.md 8, GPS step 4, "The end of a position fault the CS took in" (choice 24): on N and
         E, after the predict and before the update, an axis whose robust mode is neither plain nor fuzzy
-        rows sums the fix's position jumps the prediction did not make, ``j = (z - z_prev) - (p - p_0)``,
-        past ``min(2 chi2_1(1e-4) R, B / 4)`` (``R`` = ``r_p``, the position variance after the receiver
-        model; ``B`` the material bound below) into ``J``, decays ``J`` by ``T / (5 tau_p)`` and keeps
-        ``z_prev = z``; it *returns* when the innovation ``nu = z - (p + eps_p)`` is material,
-        ``nu^2 > B = chi2_1(1e-4) (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``. Returns whether N or E
-        returned (the caller restarts the CS after step 4). The axes of other modes leave ``z_prev``
-        and ``J`` as they are."""
+        rows sums the fix's position jumps the fixes' velocities do not explain, ``j = (z - z_prev) - d``
+        with ``d = T (v + v_prev) / 2`` (the trapezoid of this fix's N (E) velocity ``v_ne`` and the last
+        fix's, ``prev_vel`` of step 7) and, when either fix has no N/E velocity (``v_ne`` None, or the
+        last fix's mask clear), ``d = p - p_0`` (the predicted change), past ``min(2 chi2_1(1e-4) R,
+        B / 4)`` (``R`` = ``r_p``, the position variance after the receiver model; ``B`` the material
+        bound below) into ``J``, decays ``J`` by ``T / (5 tau_p)`` and keeps ``z_prev = z``; it
+        *returns* when the innovation ``nu = z - (p + eps_p)`` is material, ``nu^2 > B = chi2_1(1e-4)
+        (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``. Returns whether N or E returned (the caller restarts
+        the CS after step 4). The axes of other modes leave ``z_prev`` and ``J`` as they are."""
         k = chi2_quantile(POS_RETURN_LEVEL, 1)
         mem = self.jumps
         returned = False
+        # the trapezoid needs N/E velocity on both fixes: this one and the last one step 7 remembered
+        v_prev = self.prev_vel[:2] if self.prev_has_vel[0] else None
         for i, ax in enumerate(self.cs.axes[:2]):
             rc, c = ax.cfg.robust, ax.cfg
             if rc.mode == "plain" or (rc.mode == "fuzzy" and rc.fuzzy_reject == FUZZY_ROWS):
                 continue
             z, p = float(ned[i]), float(ax.x[0])
             material = k * (c.sigma_p_m**2 + r_p)  # beyond what the receiver's own wandering explains
-            j = (z - mem.z_prev[i]) - (p - p_0[i])  # NaN after a (re-)initialisation: no jump
+            if v_ne is not None and v_prev is not None:  # what the fixes' velocities say (trapezoid)
+                d = T * (float(v_ne[i]) + float(v_prev[i])) / 2.0
+            else:  # either fix without N/E velocity: the predicted change
+                d = p - p_0[i]
+            j = (z - mem.z_prev[i]) - d  # NaN after a (re-)initialisation: no jump
             # beyond two fixes' white error; a quarter of the material bound always is a jump
             if not math.isnan(j) and j * j > min(2.0 * k * r_p, material / 4.0):
                 mem.J[i] += j
