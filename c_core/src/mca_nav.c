@@ -728,12 +728,12 @@ MCA_NOINLINE static float white_part(float acc, float white)
 
 /* The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4), axis i (N, E),
  * after the predict and before the update; d the position change the fixes' velocities say (or,
- * without them, the CS's prediction). A jump of the fix (its position change less d) beyond
- * chi2_1(1e-4) of two fixes' R, or beyond a quarter of the material bound, is summed, and the
- * sum forgets over 5 tau_p. 1 when
- * the fix is material, beyond the receiver error's wandering from the CS (nu^2 > chi2_1(1e-4)
- * (sigma_p^2 + R)), while the jumps summed are within half of nu: the fixes are back where they
- * were, the CS is not. */
+ * without them, the CS's prediction; NaN on a fix the step test holds: no jump). A jump of the
+ * fix (its position change less d) beyond chi2_1(1e-4) of two fixes' R, or beyond a quarter of
+ * the material bound, is summed, and the sum forgets over 5 tau_p. 1 when this fix jumped, is
+ * material, beyond the receiver error's wandering from the CS (nu^2 > chi2_1(1e-4) (sigma_p^2 +
+ * R)), and the jumps summed are within half of nu: the fixes just jumped back where they were,
+ * the CS is not (a CS that drifted from the fixes in a fault is no return). */
 MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, float d, float t)
 {
     const mca_cs_axis_t *ax = &nav->cs.axis[i];
@@ -744,14 +744,15 @@ MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, f
     float e = nav->pos_jump[i];
     /* a jump is beyond two fixes' white error, and every quarter of the material bound is one:
      * R taken as all white (no receiver model) would otherwise hide a material fault */
-    if (jump * jump > (2.0f * g * r < 0.25f * b ? 2.0f * g * r : 0.25f * b)) {
+    const int jumped = jump * jump > (2.0f * g * r < 0.25f * b ? 2.0f * g * r : 0.25f * b);
+    if (jumped) {
         e += jump;
     }
     e -= e * (t / (5.0f * ax->cfg.tau_p_s));
     nav->pos_jump[i] = e;
     nav->pos_prev[i] = z;
     const float nu = z - ax->x[0] - ax->x[3];
-    return nu * nu > b && 4.0f * e * e <= nu * nu;
+    return jumped && nu * nu > b && 4.0f * e * e <= nu * nu;
 }
 
 /* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
@@ -809,7 +810,10 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     for (size_t i = 0; i < 2u; ++i) {
         const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
         if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !fuzzy_rows(rc)) {
-            const float d = vv ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i]) : nav->cs.axis[i].x[0] - x0[i];
+            /* no jump on a fix the step test holds after its first: its velocity has the fault */
+            const float d = nav->step_hold > 1u ? NAN
+                            : vv        ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i])
+                                        : nav->cs.axis[i].x[0] - x0[i];
             pos_end |= pos_return(nav, i, ned[i], rp[i], d, t);
         }
     }
