@@ -204,6 +204,36 @@ CAR_POS_FAULT = ((20.0, 120.0, 30.0, 0.0, 306.87),)
 # jumps: J of N grew 15 -> 74 m, the end left J at +55 / -23 m, no return, no restart to the end (55 s).
 # At the simulator's 5 Hz both definitions restart at the end (the lag a fix stays under the bound).
 FIXEDWING_POS_FAULT_2HZ = ((20.0, 45.0, 30.0, 0.0, 300.0),)
+# Only a fix that jumped returns (GPS step 4: the axis returns when this fix's j was a jump, nu^2 > B and
+# 4 J^2 <= nu^2): the same fault (N 26, E 15 m) at 1 Hz fixes (T = 1 s; the history ring's 0.94 s is
+# shorter, so no IMU-aided test and no velocity step test), FTA with the receiver model (jump bound 1.65 m,
+# material bound 9.8 m). The onset jumps +25.7 / +13.9 m into J; FTA's shrunk gain then leaves N on its
+# own prediction through the turn, the fixes moving on with their velocities (every j within 1.3 m) while
+# nu of N grows from 26 m (20 s) to 51 m (25 s) and 235 m (36 s). Without the rule's first condition N
+# returned at 25.0 s, nu 51.0 m past twice J (25.2 m) with a j of -0.5 m: the CS restarted from a faulty
+# fix, took the end's jump (-26.2 / -15.1 m) for a jump away (J -26.1 / -15.0 m against nu -26.2 / -15.5
+# m: no return) and stayed 26 m off after it. With it only the end's fix (45.0 s, fix 45) jumped: J
+# -2.6 / -2.3 m against nu +95.2 / -15.4 m, N and E return and the CS restarts there, on both sides.
+FIXEDWING_POS_FAULT_1HZ = ((20.0, 45.0, 30.0, 0.0, 30.0),)
+# No jump on a fix the velocity step test holds after the hold's first (GPS step 4, n > 1 after step 3): a
+# receiver reporting centimetres (the simulator's position error 1 cm white and 1 cm Gauss-Markov, 2 cm
+# vertically; no receiver model, so R is the whole 1.4 cm accuracy and any j beyond 7.8 cm is a jump, as
+# on the RTK car drive of bench_outliers_real.py) and a 10 s burst of both, 20 m and 2 m/s (N 17.3 m,
+# 1.73 m/s), in the car's cruise under IGG-III. The step test holds every burst fix; IGG-III takes N's
+# position in within a second, and the fault's velocity then runs the CS past the fixes (nu of N +17.3 m
+# at 20.2 s, -0.4 m at 21 s, -16.6 m at 29.8 s). Each held fix's trapezoid carries the faulty velocity,
+# j = -0.35 m on N: counted, they took J of N from the onset's +17.0 m to +5.3 m by 26.6 s, where nu
+# (-10.95 m) passed twice J and N returned inside the burst (the golden model without the rule; a
+# restart from a fix 20 m off). With the rule J of N stays +16.7 m to the burst's end, and the first
+# clean fix (30.0 s, fix 150), whose jump back leaves J at -0.9 / -0.5 m against nu -34.2 / -10.2 m, is
+# the only restart after home (the step test's end of a fault the CS took in, GPS step 3, as well).
+CAR_RTK_SIM = {
+    "gps_pos_sigma_h_m": 0.01,
+    "gps_pos_white_h_m": 0.01,
+    "gps_pos_sigma_v_m": 0.02,
+    "gps_pos_white_v_m": 0.02,
+}
+CAR_RTK_BURST_BOTH = ((20.0, 30.0, 20.0, 2.0, 30.0),)
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -406,6 +436,34 @@ CASES: dict[str, Case] = {
         receiver_model=True,
         gnss_faults=FIXEDWING_POS_FAULT_2HZ,
         tol=TOL_FTA_INTAKE,
+    ),
+    # Only a fix that jumped returns (FIXEDWING_POS_FAULT_1HZ): the golden model without that condition
+    # parts from the C at 25.1 s (a restart inside the fault; 21 / 23 roll/pitch decisions, 6 flag events).
+    # FTA's gain shrinks here too, but its gaps stay within TOL (measured: attitude 5.7e-5 rad, att_var_rel
+    # 1.5e-3, CS P 1.4e-5 relative, acceleration 8.1e-6 m/s^2, gps_T 2.0e-4 relative).
+    "fta_fixedwing_pos_fault_1hz_rx": Case(
+        "fixedwing_turns",
+        "fixedwing",
+        60.0,
+        {"gps_rate_hz": 1.0},
+        profile="fta",
+        receiver_model=True,
+        gnss_faults=FIXEDWING_POS_FAULT_1HZ,
+    ),
+    # No jump on a held fix after the hold's first (CAR_RTK_BURST_BOTH): the golden model without it
+    # restarts at 26.6 s and the C does not, which the step-by-step comparison alone lets through (the
+    # rows from the first differing decision, 26.7 s, on are not compared, and that decision is a single
+    # roll/pitch event, within MAX_DISCRETE):
+    # test_long_position_fault_ends_with_a_cs_restart_at_the_same_fix_on_both_sides catches it. IGG-III's
+    # steep weights: TOL_IGG (measured 7.7e-5 m/s^2, 1.7e-4 relative on the CS P, 5.1e-4 on gps_T, 9e-5 m/s).
+    "igg3_car_rtk_burst_both": Case(
+        "car_accel_brake",
+        "ground",
+        40.0,
+        CAR_RTK_SIM,
+        profile="igg3",
+        gnss_faults=CAR_RTK_BURST_BOTH,
+        tol=TOL_IGG,
     ),
 }
 
@@ -805,14 +863,23 @@ def test_guard_burst_of_both_ends_with_a_cs_restart_on_both_sides() -> None:
 
 
 @pytest.mark.parametrize(
-    "name", ["fta_car_pos_fault_rx", "igg3_car_pos_fault_rx", "fta_fixedwing_pos_fault_2hz_rx"]
+    "name",
+    [
+        "fta_car_pos_fault_rx",
+        "igg3_car_pos_fault_rx",
+        "fta_fixedwing_pos_fault_2hz_rx",
+        "fta_fixedwing_pos_fault_1hz_rx",
+        "igg3_car_rtk_burst_both",
+    ],
 )
 def test_long_position_fault_ends_with_a_cs_restart_at_the_same_fix_on_both_sides(name: str) -> None:
-    """The CAR_POS_FAULT and FIXEDWING_POS_FAULT_2HZ cases reach the rule they are for (ALGORITHMS.md 8,
-    GPS step 4, the end of a position fault the CS took in): the CS, which took the 30 m fault in,
-    restarts from the first clean fix after it, on both sides, and at no other fix but home. A CS
-    (re-)initialisation sets the N position variance to ``p0_var_m2`` (section 2), which no update lands
-    on: the fixes whose step leaves it there are the restarts."""
+    """The CAR_POS_FAULT, FIXEDWING_POS_FAULT_2HZ / _1HZ and CAR_RTK_BURST_BOTH cases reach the rule they
+    are for (ALGORITHMS.md 8, GPS step 4, the end of a position fault the CS took in): the CS, which took
+    the fault in, restarts from the first clean fix after it, on both sides, and at no other fix but home
+    (in the 1 Hz case, not inside the fault: only a fix that jumped returns; in the burst of both, not on
+    a held fix: no jump counted on a fix held after the hold's first). A CS (re-)initialisation sets the N
+    position variance to ``p0_var_m2`` (section 2), which no update lands on: the fixes whose step leaves
+    it there are the restarts."""
     case = CASES[name]
     rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording
     c, g = _runs(name)

@@ -191,11 +191,17 @@ in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
     of the last fix step 7 remembered (``prev_vel`` with its mask: the home fix, a gap's
     re-initialisation, a restarted or held fix, or one whose update failed numerically, all reach step
     7), when both have the NE-velocity flag; ``p - p_0`` otherwise (the spec's "either fix has no N/E
-    velocity"). The first fix after a (re-)start has ``z_prev`` NaN, so no jump whichever ``d``. The
-    bullets in the spec's order: the jump is added (when ``z_prev`` is not NaN and past the
-    bound), then ``J`` decays (this fix's jump included), then ``z_prev = z``, then the return test
-    with that ``J``; it also runs while ``z_prev`` is NaN (``J`` is then 0: a material innovation on
-    the first fix after a (re-)initialisation returns). The return is decided before the update and
+    velocity"). The first fix after a (re-)start has ``z_prev`` NaN, so no jump whichever ``d``. "On a
+    fix the step test holds after the hold's first (``n > 1`` after step 3) no jump is counted": the
+    step test's ``n`` as step 3's test left it on this fix (a fix it held has ``n >= 1``, any other 0),
+    in every mode the test runs in; such a fix's ``j`` is treated as undefined (as with ``z_prev``
+    NaN), while ``J`` decays and ``z_prev = z`` as on every fix; the hold's first fix (``n = 1``)
+    counts its jump. The bullets in the spec's order: the jump is added (when ``z_prev`` is not NaN,
+    the fix is not held after the hold's first, and past the bound), then ``J`` decays (this fix's
+    jump included), then ``z_prev = z``, then the return test with that ``J``: "when this fix's ``j``
+    was a jump (summed above)" is that this fix added its ``j`` to that axis' ``J``, so no fix whose
+    ``j`` is undefined returns (the first after a (re-)initialisation, one held after the hold's
+    first) nor one whose ``j`` is within the bound. The return is decided before the update and
     acted on after it: the restart is choice 23's (every axis re-initialised at the fix, memories,
     coasting marks, priors, ``a_last``; the step test's ``n`` as it is, so a fix it held stays held and
     step 7 writes no anchor), which also sets ``z_prev`` NaN and ``J = 0``, as the
@@ -976,7 +982,10 @@ class Nav:
             # D), then the predict, plain or coasting, with the IMU-aided test priors.
             ran, held = self._velocity_step_test(fx, T, incs, has_ne)
             self.cs.predict_aided(T, incs)
-            returned = self._position_return(ned, T, r_h, p_0, fx.vel[:2] if has_ne else None)
+            # GPS step 4's jumps: none on a fix the step test holds after the hold's first (n > 1 now)
+            returned = self._position_return(
+                ned, T, r_h, p_0, fx.vel[:2] if has_ne else None, count_jump=self.vst.n <= 1
+            )
             # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5); its inputs were bounded at
             # step 1, so only an axis update failing numerically (SINGULAR, NONFINITE) is an error here.
             reports, failures = self.cs.update_robust_partial(
@@ -1084,6 +1093,7 @@ class Nav:
         r_p: float,
         p_0: list[float],
         v_ne: tuple[float, ...] | None,
+        count_jump: bool,
     ) -> bool:
         """ALGORITHMS.md 8, GPS step 4, "The end of a position fault the CS took in" (choice 24): on N and
         E, after the predict and before the update, an axis whose robust mode is neither plain nor fuzzy
@@ -1092,10 +1102,14 @@ class Nav:
         fix's, ``prev_vel`` of step 7) and, when either fix has no N/E velocity (``v_ne`` None, or the
         last fix's mask clear), ``d = p - p_0`` (the predicted change), past ``min(2 chi2_1(1e-4) R,
         B / 4)`` (``R`` = ``r_p``, the position variance after the receiver model; ``B`` the material
-        bound below) into ``J``, decays ``J`` by ``T / (5 tau_p)`` and keeps ``z_prev = z``; it
-        *returns* when the innovation ``nu = z - (p + eps_p)`` is material, ``nu^2 > B = chi2_1(1e-4)
-        (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``. Returns whether N or E returned (the caller restarts
-        the CS after step 4). The axes of other modes leave ``z_prev`` and ``J`` as they are."""
+        bound below) into ``J``, decays ``J`` by ``T / (5 tau_p)`` and keeps ``z_prev = z``. With
+        ``count_jump`` False (a fix the velocity step test holds after the hold's first, ``n > 1`` after
+        step 3: its velocity carries the fault, which is no position jump) no ``j`` is counted, as if
+        undefined, while ``J`` decays and ``z_prev = z`` as on every fix. The axis *returns* only when
+        this fix's ``j`` was a jump (summed into ``J`` on this fix), the innovation ``nu = z - (p +
+        eps_p)`` is material, ``nu^2 > B = chi2_1(1e-4) (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``.
+        Returns whether N or E returned (the caller restarts the CS after step 4). The axes of other
+        modes leave ``z_prev`` and ``J`` as they are."""
         k = chi2_quantile(POS_RETURN_LEVEL, 1)
         mem = self.jumps
         returned = False
@@ -1112,13 +1126,16 @@ class Nav:
             else:  # either fix without N/E velocity: the predicted change
                 d = p - p_0[i]
             j = (z - mem.z_prev[i]) - d  # NaN after a (re-)initialisation: no jump
-            # beyond two fixes' white error; a quarter of the material bound always is a jump
-            if not math.isnan(j) and j * j > min(2.0 * k * r_p, material / 4.0):
+            # beyond two fixes' white error; a quarter of the material bound always is a jump; none on a
+            # fix held after the hold's first
+            jumped = count_jump and not math.isnan(j) and j * j > min(2.0 * k * r_p, material / 4.0)
+            if jumped:
                 mem.J[i] += j
             mem.J[i] -= mem.J[i] * T / (POS_JUMP_FORGET * c.tau_p_s)
             mem.z_prev[i] = z
             nu = z - (p + float(ax.x[3]))
-            if nu * nu > material and 4.0 * mem.J[i] ** 2 <= nu * nu:
+            # only a fix that jumped returns: the fixes just jumped back where they were, the CS is not
+            if jumped and nu * nu > material and 4.0 * mem.J[i] ** 2 <= nu * nu:
                 returned = True
         return returned
 
