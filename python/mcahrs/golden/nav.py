@@ -206,8 +206,13 @@ in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
     coasting marks, priors, ``a_last``; the step test's ``n`` as it is, so a fix it held stays held and
     step 7 writes no anchor), which also sets ``z_prev`` NaN and ``J = 0``, as the
     home start and both other restarts do (``_cs_restart``); the ``z_prev = z`` of this fix is not
-    kept. Steps 5-6 are skipped, step 7 is done as after an update (the anchor: the test did not run,
-    and the restarted axes' coasting marks are clear), and an axis' numerical failure on the same fix is
+    kept. Steps 5-6 are skipped, step 7 is done as after an update (``_step7``, after the restart):
+    when aligned and the fix not held, *pre* is ``ran``, the step test's own result on this fix (it
+    ran when its conditions held, whatever its outcome: a fix that returns may have been tested, and
+    one the test held writes nothing), and the anchor exists when the fix has N and E velocity and
+    the test ran on it or both the N and E updates were made (neither failed numerically), their
+    coasting marks being read after the restart cleared them (a velocity row step 4 left out is then
+    no bar: the CS restarted at the fix's velocity); an axis' numerical failure on the same fix is
     raised after it. On a step 1 error, or an input check of step 4, the memory is as it was.
 """
 
