@@ -728,7 +728,7 @@ MCA_NOINLINE static float white_part(float acc, float white)
 
 /* The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4), axis i (N, E),
  * after the predict and before the update; d the position change the fixes' velocities say (or,
- * without them, the CS's prediction; NaN on a fix the step test holds: no jump). A jump of the
+ * without them or on a fix the step test holds after its first, the CS's prediction). A jump of the
  * fix (its position change less d) beyond chi2_1(1e-4) of two fixes' R, or beyond a quarter of
  * the material bound, is summed, and the sum forgets over 5 tau_p. 1 when this fix jumped, is
  * material, beyond the receiver error's wandering from the CS (nu^2 > chi2_1(1e-4) (sigma_p^2 +
@@ -810,10 +810,10 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     for (size_t i = 0; i < 2u; ++i) {
         const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
         if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !fuzzy_rows(rc)) {
-            /* no jump on a fix the step test holds after its first: its velocity has the fault */
-            const float d = nav->step_hold > 1u ? NAN
-                            : vv        ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i])
-                                        : nav->cs.axis[i].x[0] - x0[i];
+            /* on a fix the step test holds after its first the fixes' velocity has the fault: the
+             * CS's predicted change, as without velocities */
+            const float d = vv && nav->step_hold < 2u ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i])
+                                                      : nav->cs.axis[i].x[0] - x0[i];
             pos_end |= pos_return(nav, i, ned[i], rp[i], d, t);
         }
     }
