@@ -190,18 +190,21 @@ in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
     it). The jump's ``d`` is ``T (v + v_prev) / 2``, ``v`` this fix's N (E) velocity and ``v_prev`` that
     of the last fix step 7 remembered (``prev_vel`` with its mask: the home fix, a gap's
     re-initialisation, a restarted or held fix, or one whose update failed numerically, all reach step
-    7), when both have the NE-velocity flag; ``p - p_0`` otherwise (the spec's "either fix has no N/E
-    velocity"). The first fix after a (re-)start has ``z_prev`` NaN, so no jump whichever ``d``. "On a
-    fix the step test holds after the hold's first (``n > 1`` after step 3) no jump is counted": the
-    step test's ``n`` as step 3's test left it on this fix (a fix it held has ``n >= 1``, any other 0),
-    in every mode the test runs in; such a fix's ``j`` is treated as undefined (as with ``z_prev``
-    NaN), while ``J`` decays and ``z_prev = z`` as on every fix; the hold's first fix (``n = 1``)
-    counts its jump. The bullets in the spec's order: the jump is added (when ``z_prev`` is not NaN,
-    the fix is not held after the hold's first, and past the bound), then ``J`` decays (this fix's
-    jump included), then ``z_prev = z``, then the return test with that ``J``: "when this fix's ``j``
-    was a jump (summed above)" is that this fix added its ``j`` to that axis' ``J``, so no fix whose
-    ``j`` is undefined returns (the first after a (re-)initialisation, one held after the hold's
-    first) nor one whose ``j`` is within the bound. The return is decided before the update and
+    7), when both have the NE-velocity flag and the fix is not one the step test holds after the
+    hold's first; ``p - p_0`` otherwise (the spec's "either fix has no N/E velocity", and "On a fix the
+    step test holds after the hold's first (``n > 1`` after step 3) ``d = p - p_0``, the predicted
+    change, as without velocities"): the step test's ``n`` as step 3's test left it on this fix (a fix
+    it held has ``n >= 1``, any other 0), in every mode the test runs in. Such a fix's jump is
+    otherwise like any other's: counted past the bound, and it may return (the spec's "only a fix
+    whose ``j`` was a jump returns" makes no exception for it). The hold's first fix (``n = 1``) and
+    the first fix after a hold take the velocities' ``d``, the latter with the last held fix's velocity
+    as ``v_prev`` (the spec's "of the last": step 7 remembers a held fix's velocity too). The first
+    fix after a (re-)start has ``z_prev`` NaN, so no jump whichever ``d``. The bullets in the spec's
+    order: the jump is added (when ``z_prev`` is not NaN and past the bound), then ``J`` decays (this
+    fix's jump included), then ``z_prev = z``, then the return test with that ``J``: "when this fix's
+    ``j`` was a jump (summed above)" is that this fix added its ``j`` to that axis' ``J``, so no fix
+    whose ``j`` is undefined returns (the first after a (re-)initialisation) nor one whose ``j`` is
+    within the bound. The return is decided before the update and
     acted on after it: the restart is choice 23's (every axis re-initialised at the fix, memories,
     coasting marks, priors, ``a_last``; the step test's ``n`` as it is, so a fix it held stays held and
     step 7 writes no anchor), which also sets ``z_prev`` NaN and ``J = 0``, as the
@@ -987,9 +990,10 @@ class Nav:
             # D), then the predict, plain or coasting, with the IMU-aided test priors.
             ran, held = self._velocity_step_test(fx, T, incs, has_ne)
             self.cs.predict_aided(T, incs)
-            # GPS step 4's jumps: none on a fix the step test holds after the hold's first (n > 1 now)
+            # GPS step 4's jumps: against the predicted change on a fix the step test holds after the
+            # hold's first (n > 1 now), whose velocity carries the fault
             returned = self._position_return(
-                ned, T, r_h, p_0, fx.vel[:2] if has_ne else None, count_jump=self.vst.n <= 1
+                ned, T, r_h, p_0, fx.vel[:2] if has_ne else None, predicted=self.vst.n > 1
             )
             # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5); its inputs were bounded at
             # step 1, so only an axis update failing numerically (SINGULAR, NONFINITE) is an error here.
@@ -1098,19 +1102,19 @@ class Nav:
         r_p: float,
         p_0: list[float],
         v_ne: tuple[float, ...] | None,
-        count_jump: bool,
+        predicted: bool,
     ) -> bool:
         """ALGORITHMS.md 8, GPS step 4, "The end of a position fault the CS took in" (choice 24): on N and
         E, after the predict and before the update, an axis whose robust mode is neither plain nor fuzzy
         rows sums the fix's position jumps the fixes' velocities do not explain, ``j = (z - z_prev) - d``
         with ``d = T (v + v_prev) / 2`` (the trapezoid of this fix's N (E) velocity ``v_ne`` and the last
         fix's, ``prev_vel`` of step 7) and, when either fix has no N/E velocity (``v_ne`` None, or the
-        last fix's mask clear), ``d = p - p_0`` (the predicted change), past ``min(2 chi2_1(1e-4) R,
-        B / 4)`` (``R`` = ``r_p``, the position variance after the receiver model; ``B`` the material
-        bound below) into ``J``, decays ``J`` by ``T / (5 tau_p)`` and keeps ``z_prev = z``. With
-        ``count_jump`` False (a fix the velocity step test holds after the hold's first, ``n > 1`` after
-        step 3: its velocity carries the fault, which is no position jump) no ``j`` is counted, as if
-        undefined, while ``J`` decays and ``z_prev = z`` as on every fix. The axis *returns* only when
+        last fix's mask clear) or ``predicted`` is set (a fix the velocity step test holds after the
+        hold's first, ``n > 1`` after step 3: its velocity carries the fault), ``d = p - p_0`` (the
+        predicted change), past ``min(2 chi2_1(1e-4) R, B / 4)`` (``R`` = ``r_p``, the position variance
+        after the receiver model; ``B`` the material bound below) into ``J``, decays ``J`` by ``T / (5
+        tau_p)`` and keeps ``z_prev = z``; the jump is counted and may return on every fix alike (the
+        hold's first fix, ``n = 1``, takes the velocities' ``d``). The axis *returns* only when
         this fix's ``j`` was a jump (summed into ``J`` on this fix), the innovation ``nu = z - (p +
         eps_p)`` is material, ``nu^2 > B = chi2_1(1e-4) (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``.
         Returns whether N or E returned (the caller restarts the CS after step 4). The axes of other
@@ -1126,14 +1130,13 @@ class Nav:
                 continue
             z, p = float(ned[i]), float(ax.x[0])
             material = k * (c.sigma_p_m**2 + r_p)  # beyond what the receiver's own wandering explains
-            if v_ne is not None and v_prev is not None:  # what the fixes' velocities say (trapezoid)
-                d = T * (float(v_ne[i]) + float(v_prev[i])) / 2.0
-            else:  # either fix without N/E velocity: the predicted change
+            if not predicted and v_ne is not None and v_prev is not None:  # the fixes' velocities say
+                d = T * (float(v_ne[i]) + float(v_prev[i])) / 2.0  # (trapezoid)
+            else:  # either fix without N/E velocity, or held after the hold's first: the predicted change
                 d = p - p_0[i]
             j = (z - mem.z_prev[i]) - d  # NaN after a (re-)initialisation: no jump
-            # beyond two fixes' white error; a quarter of the material bound always is a jump; none on a
-            # fix held after the hold's first
-            jumped = count_jump and not math.isnan(j) and j * j > min(2.0 * k * r_p, material / 4.0)
+            # beyond two fixes' white error; a quarter of the material bound always is a jump
+            jumped = not math.isnan(j) and j * j > min(2.0 * k * r_p, material / 4.0)
             if jumped:
                 mem.J[i] += j
             mem.J[i] -= mem.J[i] * T / (POS_JUMP_FORGET * c.tau_p_s)
