@@ -730,10 +730,11 @@ MCA_NOINLINE static float white_part(float acc, float white)
  * after the predict and before the update; d the position change the fixes' velocities say (or,
  * without them or on a fix the step test holds after its first, the CS's prediction). A jump of the
  * fix (its position change less d) beyond chi2_1(1e-4) of two fixes' R, or beyond a quarter of
- * the material bound, is summed, and the sum forgets over 5 tau_p. 1 when this fix jumped, is
- * material, beyond the receiver error's wandering from the CS (nu^2 > chi2_1(1e-4) (sigma_p^2 +
- * R)), and the jumps summed are within half of nu: the fixes just jumped back where they were,
- * the CS is not (a CS that drifted from the fixes in a fault is no return). */
+ * the material bound, is summed, and the sum forgets over 5 tau_p. 1 when this fix jumped or no
+ * fault is pending (the sum within half the material bound), the fix is material, beyond the
+ * receiver error's wandering from the CS (nu^2 > chi2_1(1e-4) (sigma_p^2 + R)), and the jumps
+ * summed are within half of nu: the fixes just jumped back where they were, or never left, and
+ * the CS is not (a CS that drifted from a position fault's fixes is no return). */
 MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, float d, float t)
 {
     const mca_cs_axis_t *ax = &nav->cs.axis[i];
@@ -752,7 +753,7 @@ MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, f
     nav->pos_jump[i] = e;
     nav->pos_prev[i] = z;
     const float nu = z - ax->x[0] - ax->x[3];
-    return jumped && nu * nu > b && 4.0f * e * e <= nu * nu;
+    return (jumped || 4.0f * e * e <= b) && nu * nu > b && 4.0f * e * e <= nu * nu;
 }
 
 /* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
