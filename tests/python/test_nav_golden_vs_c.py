@@ -204,16 +204,17 @@ CAR_POS_FAULT = ((20.0, 120.0, 30.0, 0.0, 306.87),)
 # jumps: J of N grew 15 -> 74 m, the end left J at +55 / -23 m, no return, no restart to the end (55 s).
 # At the simulator's 5 Hz both definitions restart at the end (the lag a fix stays under the bound).
 FIXEDWING_POS_FAULT_2HZ = ((20.0, 45.0, 30.0, 0.0, 300.0),)
-# Only a fix that jumped returns (GPS step 4: the axis returns when this fix's j was a jump, nu^2 > B and
-# 4 J^2 <= nu^2): the same fault (N 26, E 15 m) at 1 Hz fixes (T = 1 s; the history ring's 0.94 s is
-# shorter, so no IMU-aided test and no velocity step test), FTA with the receiver model (jump bound 1.65 m,
-# material bound 9.8 m). The onset jumps +25.7 / +13.9 m into J; FTA's shrunk gain then leaves N on its
-# own prediction through the turn, the fixes moving on with their velocities (every j within 1.3 m) while
-# nu of N grows from 26 m (20 s) to 51 m (25 s) and 235 m (36 s). Without the rule's first condition N
-# returned at 25.0 s, nu 51.0 m past twice J (25.2 m) with a j of -0.5 m: the CS restarted from a faulty
-# fix, took the end's jump (-26.2 / -15.1 m) for a jump away (J -26.1 / -15.0 m against nu -26.2 / -15.5
-# m: no return) and stayed 26 m off after it. With it only the end's fix (45.0 s, fix 45) jumped: J
-# -2.6 / -2.3 m against nu +95.2 / -15.4 m, N and E return and the CS restarts there, on both sides.
+# Only a fix that jumped returns while a fault is pending (GPS step 4: the axis returns when this fix's j was
+# a jump or 4 J^2 <= B, nothing pending, and nu^2 > B and 4 J^2 <= nu^2): the same fault (N 26, E 15 m) at
+# 1 Hz fixes (T = 1 s; the history ring's 0.94 s is shorter, so no IMU-aided test and no velocity step test),
+# FTA with the receiver model (jump bound 1.65 m, material bound 9.8 m). The onset jumps +25.7 / +13.9 m into
+# J; FTA's shrunk gain then leaves N on its own prediction through the turn, the fixes moving on with their
+# velocities (every j within 1.3 m) while nu of N grows from 26 m (20 s) to 51 m (25 s) and 235 m (36 s).
+# Without the rule's first condition (the jump, J being pending: 4 J^2 > B) N returned at 25.0 s, nu 51.0 m
+# past twice J (25.2 m) with a j of -0.5 m: the CS restarted from a faulty fix, took the end's jump (-26.2 /
+# -15.1 m) for a jump away (J -26.1 / -15.0 m against nu -26.2 / -15.5 m: no return) and stayed 26 m off after
+# it. With it only the end's fix (45.0 s, fix 45) jumped: J -2.6 / -2.3 m against nu +95.2 / -15.4 m, N and E
+# return and the CS restarts there, on both sides.
 FIXEDWING_POS_FAULT_1HZ = ((20.0, 45.0, 30.0, 0.0, 30.0),)
 # The predicted change on a fix the velocity step test holds after the hold's first (GPS step 4, n > 1
 # after step 3: d = p - p_0): a receiver reporting centimetres (the simulator's position error 1 cm white
@@ -372,6 +373,10 @@ CASES: dict[str, Case] = {
         profile="fuzzy",
         tilt_blips=(15.0, 22.0, 35.0),
     ),
+    # IGG-III also reaches GPS step 4's return with nothing pending (J 0 since the step test's restart at
+    # the burst of both's end, 29.0 s): the CS drifts from the clean fixes after it and N returns at 32.4 s
+    # (nu -11.8 m; the CS position moves 13.1 m), on both sides (test below). Requiring this fix's jump
+    # always, the golden model parts from the C there (3 / 4 roll/pitch decisions).
     "igg3_car": Case("car_accel_brake", "ground", 70.0, profile="igg3", gnss_faults=CAR_FAULTS, tol=TOL_IGG),
     # The velocity step test (ALGORITHMS.md 8, GPS step 3): a burst held to its end, a spike that
     # passed blamed instead of the clean fix after it, and the end of a fault of both the CS took in at
@@ -458,7 +463,8 @@ CASES: dict[str, Case] = {
         gnss_faults=FIXEDWING_POS_FAULT_2HZ,
         tol=TOL_FTA_INTAKE,
     ),
-    # Only a fix that jumped returns (FIXEDWING_POS_FAULT_1HZ): the golden model without that condition
+    # Only a fix that jumped returns while a fault is pending (FIXEDWING_POS_FAULT_1HZ): the golden model
+    # without that condition
     # parts from the C at 25.1 s (a restart inside the fault; 21 / 23 roll/pitch decisions, 6 flag events).
     # FTA's gain shrinks here too, but its gaps stay within TOL (measured: attitude 5.7e-5 rad, att_var_rel
     # 1.5e-3, CS P 1.4e-5 relative, acceleration 8.1e-6 m/s^2, gps_T 2.0e-4 relative).
@@ -903,6 +909,36 @@ RESTARTS_INSIDE: dict[str, tuple[float, ...]] = {"igg3_car_rtk_burst_both": (26.
 RESTART_MOVE_M: dict[str, float] = {"akf_car_pos_fault_end_held_rx": 3.0}
 
 
+def _restarts(name: str) -> tuple[Recording, list[list[int]], np.ndarray]:
+    """The case's recording, the fixes (indices) after which the CS N position variance is
+    ``p0_var_m2`` (section 2: a CS (re-)initialisation; no update lands on it) in the C and the golden
+    output, and each fix's output row after it."""
+    case = CASES[name]
+    rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording
+    c, g = _runs(name)
+    p0 = _configs(case, rec)[1].cs_h.p0_var_m2
+    row = np.searchsorted(g["t_us"], rec.gnss["t_rx_us"].astype(np.int64), side="right")  # after each fix
+    ok = row < len(g["t_us"])
+    restarts = [
+        np.flatnonzero(ok)[np.isclose(p[row[ok], 0].astype(np.float64), p0, rtol=1e-6, atol=0.0)].tolist()
+        for p in (c["cs_var"], g["cs_P_diag"])
+    ]
+    return rec, restarts, row
+
+
+def test_cs_drifted_from_clean_fixes_with_no_position_fault_pending_returns_on_both_sides() -> None:
+    """ALGORITHMS.md 8, GPS step 4, the return's first condition: this fix's ``j`` a jump *or* ``4 J^2 <=
+    B`` (no position fault pending). In igg3_car (CAR_FAULTS) the CS restarts at home, at the step test's
+    ends of the velocity bursts (19.0, 24.0 s) and of the burst of both (29.0 s), and at 32.4 s, where no
+    fix jumped but J is 0 (cleared at 29.0 s) and the CS drifted from the clean fixes (N: nu -11.8 m):
+    the same fixes on both sides. Requiring the jump always there is no restart at 32.4 s."""
+    rec, restarts, _ = _restarts("igg3_car")
+    t_fix_us = rec.gnss["t_us"].astype(np.int64)
+    expected = [int(np.flatnonzero(t_fix_us == round(t * 1e6))[0]) for t in (0.0, 19.0, 24.0, 29.0, 32.4)]
+    assert restarts[1] == expected
+    assert restarts[0] == restarts[1]
+
+
 @pytest.mark.parametrize(
     "name",
     [
@@ -918,22 +954,16 @@ def test_long_position_fault_ends_with_a_cs_restart_at_the_same_fix_on_both_side
     """The CAR_POS_FAULT, FIXEDWING_POS_FAULT_2HZ / _1HZ, CAR_POS_FAULT_END_HELD and CAR_RTK_BURST_BOTH
     cases reach the rule they are for (ALGORITHMS.md 8, GPS step 4, the end of a position fault the CS
     took in): the CS, which took the fault in, restarts from the first clean fix after it, on both sides,
-    and at no other fix but home (in the 1 Hz case, not inside the fault: only a fix that jumped returns)
+    and at no other fix but home (in the 1 Hz case, not inside the fault: with the onset's jump pending
+    only a fix that jumped returns)
     and those of ``RESTARTS_INSIDE`` (in the burst of both, the return on a held fix at 26.6 s: its jump
     against the predicted change). The end of CAR_POS_FAULT_END_HELD is a fix the step test holds after
     the hold's first: its jump against the predicted change is counted, so it returns. A CS
     (re-)initialisation sets the N position variance to ``p0_var_m2`` (section 2), which no update lands
     on: the fixes whose step leaves it there are the restarts."""
     case = CASES[name]
-    rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording
-    c, g = _runs(name)
-    p0 = _configs(case, rec)[1].cs_h.p0_var_m2
-    row = np.searchsorted(g["t_us"], rec.gnss["t_rx_us"].astype(np.int64), side="right")  # after each fix
-    ok = row < len(g["t_us"])
-    restarts = [
-        np.flatnonzero(ok)[np.isclose(p[row[ok], 0].astype(np.float64), p0, rtol=1e-6, atol=0.0)].tolist()
-        for p in (c["cs_var"], g["cs_P_diag"])
-    ]
+    rec, restarts, row = _restarts(name)
+    g = _runs(name)[1]
     t1 = case.gnss_faults[0][1]
     t_fix_us = rec.gnss["t_us"].astype(np.int64)
     first_clean = int(np.flatnonzero(t_fix_us >= round(t1 * 1e6))[0])

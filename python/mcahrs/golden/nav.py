@@ -195,16 +195,17 @@ in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
     step test holds after the hold's first (``n > 1`` after step 3) ``d = p - p_0``, the predicted
     change, as without velocities"): the step test's ``n`` as step 3's test left it on this fix (a fix
     it held has ``n >= 1``, any other 0), in every mode the test runs in. Such a fix's jump is
-    otherwise like any other's: counted past the bound, and it may return (the spec's "only a fix
-    whose ``j`` was a jump returns" makes no exception for it). The hold's first fix (``n = 1``) and
-    the first fix after a hold take the velocities' ``d``, the latter with the last held fix's velocity
-    as ``v_prev`` (the spec's "of the last": step 7 remembers a held fix's velocity too). The first
-    fix after a (re-)start has ``z_prev`` NaN, so no jump whichever ``d``. The bullets in the spec's
+    otherwise like any other's: counted past the bound, and it may return. The hold's first fix
+    (``n = 1``) and the first fix after a hold take the velocities' ``d``, the latter with the last held
+    fix's velocity as ``v_prev`` (the spec's "of the last": step 7 remembers a held fix's velocity too).
+    The first fix after a (re-)start has ``z_prev`` NaN, so no jump whichever ``d``. The bullets in the spec's
     order: the jump is added (when ``z_prev`` is not NaN and past the bound), then ``J`` decays (this
-    fix's jump included), then ``z_prev = z``, then the return test with that ``J``: "when this fix's
-    ``j`` was a jump (summed above)" is that this fix added its ``j`` to that axis' ``J``, so no fix
-    whose ``j`` is undefined returns (the first after a (re-)initialisation) nor one whose ``j`` is
-    within the bound. The return is decided before the update and
+    fix's jump included), then ``z_prev = z``, then the return test with that ``J``: the axis returns when
+    (this fix's ``j`` was a jump, that is this fix added its ``j`` to that axis' ``J``, or ``4 J^2 <=
+    B``, the jumps summed within half the material bound: no position fault pending) and ``nu^2 > B``
+    and ``4 J^2 <= nu^2``. A fix whose ``j`` is undefined (the first after a (re-)initialisation, ``J``
+    0 then) or within the bound may thus return when nothing is pending: a CS that drifted from clean
+    fixes restarts from them. The return is decided before the update and
     acted on after it: the restart is choice 23's (every axis re-initialised at the fix, memories,
     coasting marks, priors, ``a_last``; the step test's ``n`` as it is, so a fix it held stays held and
     step 7 writes no anchor), which also sets ``z_prev`` NaN and ``J = 0``, as the
@@ -1114,9 +1115,11 @@ class Nav:
         predicted change), past ``min(2 chi2_1(1e-4) R, B / 4)`` (``R`` = ``r_p``, the position variance
         after the receiver model; ``B`` the material bound below) into ``J``, decays ``J`` by ``T / (5
         tau_p)`` and keeps ``z_prev = z``; the jump is counted and may return on every fix alike (the
-        hold's first fix, ``n = 1``, takes the velocities' ``d``). The axis *returns* only when
-        this fix's ``j`` was a jump (summed into ``J`` on this fix), the innovation ``nu = z - (p +
-        eps_p)`` is material, ``nu^2 > B = chi2_1(1e-4) (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``.
+        hold's first fix, ``n = 1``, takes the velocities' ``d``). The axis *returns* when
+        this fix's ``j`` was a jump (summed into ``J`` on this fix) or the jumps summed are within half
+        the material bound (``4 J^2 <= B``: no position fault pending), and the innovation ``nu = z -
+        (p + eps_p)`` is material, ``nu^2 > B = chi2_1(1e-4) (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``
+        (``J`` after this fix's jump and forgetting).
         Returns whether N or E returned (the caller restarts the CS after step 4). The axes of other
         modes leave ``z_prev`` and ``J`` as they are."""
         k = chi2_quantile(POS_RETURN_LEVEL, 1)
@@ -1142,8 +1145,10 @@ class Nav:
             mem.J[i] -= mem.J[i] * T / (POS_JUMP_FORGET * c.tau_p_s)
             mem.z_prev[i] = z
             nu = z - (p + float(ax.x[3]))
-            # only a fix that jumped returns: the fixes just jumped back where they were, the CS is not
-            if jumped and nu * nu > material and 4.0 * mem.J[i] ** 2 <= nu * nu:
+            # a fix that jumped, or any with no position fault pending (J within half the material
+            # bound), returns when the CS is materially off the fix and J is within half of that
+            pending = 4.0 * mem.J[i] ** 2 > material
+            if (jumped or not pending) and nu * nu > material and 4.0 * mem.J[i] ** 2 <= nu * nu:
                 returned = True
         return returned
 
