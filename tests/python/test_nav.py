@@ -998,15 +998,16 @@ def test_the_position_return_counts_jumps_against_the_fixes_velocities() -> None
 
 @pytest.mark.parametrize("profile", ["fta", "fuzzy-inflate"])
 def test_a_cs_that_drifted_from_the_fixes_in_a_fault_does_not_return_inside_it(profile: str) -> None:
-    """ALGORITHMS.md 8, GPS step 4, the return: only a fix that jumped returns. A 25 s position fault
-    of 30 m (N 26, E 15) on the simulated fixed-wing at 1 Hz fixes, in its first turn, with the
-    receiver model. FTA and fuzzy inflate leave the CS on its own prediction, which falls 2-5 m a fix
-    behind the fixes in the turn; without the rule, once the innovation passed twice the onset's
-    jump the CS returned inside the fault (measured at 25-26 s), restarted from a faulty fix, took
-    the fault's end for a jump away and stayed 20-28 m off the outlier-free run after it; with the
-    jumps against the CS prediction (the build before session 24) it never restarted (16 m and 360 m
-    off). With it the only restart is the fault's first clean fix (45 s), and the CS is within 2.0 m
-    after it (measured 1.6-2.0 m)."""
+    """ALGORITHMS.md 8, GPS step 4, the return: while a fault's onset is pending in the jumps summed,
+    only a fix that jumped returns. A 25 s position fault of 30 m (N 26, E 15) on the simulated
+    fixed-wing at 1 Hz fixes, in its first turn, with the receiver model. FTA and fuzzy inflate
+    leave the CS on its own prediction, which falls 2-5 m a fix behind the fixes in the turn;
+    without the rule, once the innovation passed twice the onset's jump the CS returned inside the
+    fault (measured at 25-26 s), restarted from a faulty fix, took the fault's end for a jump away
+    and stayed 20-28 m off the outlier-free run after it; with the jumps against the CS prediction
+    (the build before session 24) it never restarted (16 m and 360 m off). With it the only restart
+    is the fault's first clean fix (45 s), and the CS is within 2.0 m after it (measured
+    1.6-2.0 m)."""
     res = scenario("fixedwing_turns", seed=1, duration_s=120.0, gps_rate_hz=1.0)
     rec, p = res.recording, res.params
     bad, _ = _with_gnss_fault(rec, 20.0, 45.0, (26.0, 15.0), (0.0, 0.0))
