@@ -379,8 +379,7 @@ def test_imu_aided_gps_test_flags_velocity_spikes_not_maneuvers(name: str, prese
     rates = {}
     for aided in (0, 1):
         out = core.replay(bad, core.nav_config(preset, gps_test_imu=aided))
-        t_out = out["t_us"].astype(np.int64)
-        rows = np.minimum(np.searchsorted(t_out, g["t_rx_us"], side="right"), t_out.size - 1)
+        rows = _fix_rows(out, g)
         flagged = (out["gps_t"][rows][:, :2].astype(np.float64) > thr).any(axis=1)
         rates[aided] = (float(flagged[idx].mean()), float(flagged[clean].mean()))
     print(f"{name}: spikes flagged own {rates[0][0]:.3f} aided {rates[1][0]:.3f}; "
@@ -527,6 +526,13 @@ def test_robust_modes_on_real_fixes_flag_nothing() -> None:
                 assert np.degrees(np.abs(out["euler_rad"][:, :2] - base[:, :2])).max() < 0.5, path.name
 
 
+def _fix_rows(out: dict[str, np.ndarray], gnss: np.ndarray) -> np.ndarray:
+    """The output row of each fix: the first IMU step after its receive time (the last row for a
+    fix after the end)."""
+    t_out = out["t_us"].astype(np.int64)
+    return np.minimum(np.searchsorted(t_out, gnss["t_rx_us"], side="right"), t_out.size - 1)
+
+
 def _with_gnss_fault(
     rec: object, t0: float, t1: float, d_ne_m: tuple[float, float], dv_ne_mps: tuple[float, float]
 ) -> tuple[object, np.ndarray]:
@@ -604,8 +610,7 @@ def test_fuzzy_rows_ride_out_a_position_fault_and_a_fault_of_both() -> None:
     for label, profile in (("fuzzy", "fuzzy"), ("rows", "fuzzy-rows")):
         cfg = core.nav_config("fixedwing", **core.robust_profile(profile, res.params.gps_rate_hz))
         clean, run = core.replay(rec, cfg), core.replay(bad, cfg)
-        t_out = run["t_us"].astype(np.int64)
-        at_fix = np.minimum(np.searchsorted(t_out, g["t_rx_us"], side="right"), t_out.size - 1)
+        at_fix = _fix_rows(run, g)
         d = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
         dev[label] = np.hypot(d[:, 0], d[:, 1])
         q = res.truth.euler_rad[:, :2]
@@ -721,8 +726,7 @@ def test_receiver_model_makes_the_gps_test_consistent() -> None:
     means = {}
     for label, over in (("white", {}), ("model", _sim_receiver_model(res.params))):
         out = core.replay(rec, core.nav_config("ground", **over))
-        t_out = out["t_us"].astype(np.int64)
-        at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+        at_fix = _fix_rows(out, rec.gnss)
         means[label] = out["gps_t"][at_fix][late, :2].astype(np.float64).mean(axis=0)
     print(f"mean GPS T, N and E, after 60 s: {means}")
     assert np.all((means["model"] > 1.5) & (means["model"] < 2.5))
@@ -743,8 +747,7 @@ def test_receiver_model_lets_fuzzy_rows_hold_out_a_10m_position_burst() -> None:
         profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
         cfg = core.nav_config("ground", **{**profile, **over})
         clean, run = core.replay(rec, cfg), core.replay(bad, cfg)
-        t_out = run["t_us"].astype(np.int64)
-        at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+        at_fix = _fix_rows(run, rec.gnss)
         flagged[label] = float(np.mean((run["flags"][at_fix][sel] & bits) != 0))
         d = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
         dev[label] = float(np.hypot(d[:, 0], d[:, 1])[sel].max())
@@ -777,8 +780,7 @@ def test_velocity_step_test_alarms_a_small_velocity_burst_from_its_first_fix() -
         profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
         cfg = core.nav_config("ground", **{**profile, **_sim_receiver_model(res.params), **over})
         clean, run = core.replay(rec, cfg), core.replay(bad, cfg)
-        t_out = run["t_us"].astype(np.int64)
-        at_fix = np.minimum(np.searchsorted(t_out, g["t_rx_us"], side="right"), t_out.size - 1)
+        at_fix = _fix_rows(run, g)
         alarm = (run["flags"][at_fix] & bits) != 0
         dv = run["vel_ned_mps"][at_fix, :2].astype(np.float64) - clean["vel_ned_mps"][at_fix, :2]
         out[label] = {
@@ -798,8 +800,7 @@ def test_velocity_step_test_alarms_a_small_velocity_burst_from_its_first_fix() -
 def _alarms_at_fixes(rec: Recording, cfg: object) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """The C replay of rec and its N/E alarm after each fix."""
     run = core.replay(rec, cfg)
-    t_out = run["t_us"].astype(np.int64)
-    at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+    at_fix = _fix_rows(run, rec.gnss)
     bits = core.FLAG_BITS["alarm_n"] | core.FLAG_BITS["alarm_e"]
     return run, (run["flags"][at_fix] & bits) != 0
 
@@ -820,8 +821,7 @@ def test_velocity_step_test_holds_a_small_burst_to_its_end() -> None:
     cfg = core.nav_config("ground", **{**profile, **_sim_receiver_model(res.params)})
     clean, clean_alarm = _alarms_at_fixes(rec, cfg)
     run, alarm = _alarms_at_fixes(bad, cfg)
-    t_out = run["t_us"].astype(np.int64)
-    at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+    at_fix = _fix_rows(run, rec.gnss)
     dv = run["vel_ned_mps"][at_fix, :2].astype(np.float64) - clean["vel_ned_mps"][at_fix, :2]
     print(alarm[sel].mean(), alarm[after].sum(), np.hypot(dv[:, 0], dv[:, 1])[sel].max())
     assert alarm[sel].mean() > 0.95
@@ -876,8 +876,7 @@ def test_the_end_of_a_fault_the_cs_guard_took_in_restarts_the_cs() -> None:
     cfg = core.nav_config("ground", **{**profile, **_sim_receiver_model(res.params)})
     clean, clean_alarm = _alarms_at_fixes(rec, cfg)
     run, alarm = _alarms_at_fixes(bad, cfg)
-    t_out = run["t_us"].astype(np.int64)
-    at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+    at_fix = _fix_rows(run, rec.gnss)
     late = (t_s >= 172.0) & (t_s < 190.0)
     dp = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
     dv = run["vel_ned_mps"][at_fix, :2].astype(np.float64) - clean["vel_ned_mps"][at_fix, :2]
@@ -907,8 +906,7 @@ def test_the_end_of_a_position_fault_the_cs_took_in_restarts_the_cs(profile: str
     for name in (profile, "plain"):
         cfg = core.nav_config("ground", **{**core.robust_profile(name, res.params.gps_rate_hz), **model})
         run, clean = core.replay(bad, cfg), core.replay(rec, cfg)
-        t_out = run["t_us"].astype(np.int64)
-        at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+        at_fix = _fix_rows(run, rec.gnss)
         e = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
         herr[name] = np.hypot(e[:, 0], e[:, 1])
     during = sel & (t_s >= 160.0)
@@ -988,8 +986,7 @@ def test_the_position_return_counts_jumps_against_the_fixes_velocities() -> None
     over = {**core.robust_profile("fuzzy-inflate", p.gps_rate_hz), **_sim_receiver_model(p)}
     cfg = core.nav_config("fixedwing", **over)
     run, clean = core.replay(bad, cfg), core.replay(rec, cfg)
-    t_out = run["t_us"].astype(np.int64)
-    at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+    at_fix = _fix_rows(run, rec.gnss)
     e = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
     herr = np.hypot(e[:, 0], e[:, 1])
     assert herr[sel & (t_s >= 200.0)].mean() > 15.0  # the mode took the fault in
@@ -1015,8 +1012,7 @@ def test_a_cs_that_drifted_from_the_fixes_in_a_fault_does_not_return_inside_it(p
     over = {**core.robust_profile(profile, p.gps_rate_hz), **_sim_receiver_model(p)}
     cfg = core.nav_config("fixedwing", **over)
     run, clean = core.replay(bad, cfg), core.replay(rec, cfg)
-    t_out = run["t_us"].astype(np.int64)
-    at_fix = np.minimum(np.searchsorted(t_out, rec.gnss["t_rx_us"], side="right"), t_out.size - 1)
+    at_fix = _fix_rows(run, rec.gnss)
     # a CS (re-)initialisation leaves the N position variance at p0_var_m2, which no update lands on
     restarts = t_s[(t_s > 1.0) & np.isclose(run["cs_var"][at_fix, 0], cfg.cs_h.p0_var_m2, rtol=1e-6)]
     e = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
