@@ -419,6 +419,16 @@ def ins_vs_nav(args, build: Path, meta: dict, samples: dict, painted: dict, fram
 
 
 OPT_OF_BUILD = {"MinSizeRel": "-Os", "Release": "-O2"}  # c_core/firmware/CMakeLists.txt
+FW_CMAKE = Path(__file__).resolve().parent.parent / "c_core" / "firmware" / "CMakeLists.txt"
+
+
+def opt_flags(build_type: str) -> str:
+    """The optimisation flags of a firmware build type as c_core/firmware/CMakeLists.txt sets them
+    (MinSizeRel: -Os and the passes it leaves out, MCA_FW_SIZE_FLAGS)."""
+    text = FW_CMAKE.read_text()
+    m = re.search(r'^set\(MCA_FW_SIZE_FLAGS "([^"]*)"\)', text, re.M)
+    extra = f" {m.group(1)}" if build_type == "MinSizeRel" and m else ""
+    return OPT_OF_BUILD[build_type] + extra
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -442,7 +452,7 @@ def main(argv: list[str] | None = None) -> int:
     elf = gv.build_firmware(build, args.build_type)
     gcc = subprocess.run(["arm-none-eabi-gcc", "-dumpversion"], capture_output=True, text=True).stdout.strip()
     print(
-        f"MCAHRS Cortex-M4F report: arm-none-eabi-gcc {gcc}, {OPT_OF_BUILD[args.build_type]} "
+        f"MCAHRS Cortex-M4F report: arm-none-eabi-gcc {gcc}, {opt_flags(args.build_type)} "
         f"-mcpu=cortex-m4 -mfpu=fpv4-sp-d16 -mfloat-abi=hard, newlib-nano, {build.relative_to(gv.REPO)}"
     )
 
