@@ -429,8 +429,9 @@ static inline int fuzzy_rows(const mca_robust_config_t *rc)
 }
 
 /* mca_nav_t.step_flags; PRE: the step test ran on the last fix (so u.step.pre is its); RET: this
- * fix restarts the CS, the end of a fault it took in (set by gps_cs: GPS steps 3 and 4) */
-enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u, STEP_PRE = 8u, STEP_RET = 16u };
+ * fix restarts the CS, the end of a fault it took in (set by gps_cs: GPS steps 3 and 4); REF:
+ * u.step.ref holds the position reference (aligned only, set by gps_cs: GPS step 4) */
+enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u, STEP_PRE = 8u, STEP_RET = 16u, STEP_REF = 32u };
 
 /* The fuzzy memories' D of N and E raised to at least v (up) or lowered to at most v. */
 MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
@@ -730,11 +731,14 @@ MCA_NOINLINE static float white_part(float acc, float white)
  * after the predict and before the update; d the position change the fixes' velocities say (or,
  * without them or on a fix the step test holds after its first, the CS's prediction). A jump of the
  * fix (its position change less d) beyond chi2_1(1e-4) of two fixes' R, or beyond a quarter of
- * the material bound, is summed, and the sum forgets over 5 tau_p. 1 when this fix jumped or no
- * fault is pending (the sum within half the material bound), the fix is material, beyond the
+ * the material bound, is summed, and the sum forgets over 5 tau_p. POS_RETURN when this fix jumped
+ * or no fault is pending (the sum within half the material bound), the fix is material, beyond the
  * receiver error's wandering from the CS (nu^2 > chi2_1(1e-4) (sigma_p^2 + R)), and the jumps
  * summed are within half of nu: the fixes just jumped back where they were, or never left, and
- * the CS is not (a CS that drifted from a position fault's fixes is no return). */
+ * the CS is not (a CS that drifted from a position fault's fixes is no return). POS_BUSY when
+ * this fix jumped or a fault is pending; the position reference, when there is one, is carried
+ * on by d, and POS_NEAR when the fix is within the material bound of it. */
+enum { POS_RETURN = 1, POS_BUSY = 2, POS_NEAR = 4 };
 MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, float d, float t)
 {
     const mca_cs_axis_t *ax = &nav->cs.axis[i];
@@ -753,7 +757,15 @@ MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, f
     nav->pos_jump[i] = e;
     nav->pos_prev[i] = z;
     const float nu = z - ax->x[0] - ax->x[3];
-    return (jumped || 4.0f * e * e <= b) && nu * nu > b && 4.0f * e * e <= nu * nu;
+    const int busy = jumped || 4.0f * e * e > b;
+    int near = 0;
+    if ((nav->step_flags & STEP_REF) != 0u) {
+        float *ref = &nav->u.step.ref[i];
+        *ref += d;
+        near = (z - *ref) * (z - *ref) <= b;
+    }
+    return ((jumped || !busy) && nu * nu > b && 4.0f * e * e <= nu * nu ? POS_RETURN : 0) | (busy ? POS_BUSY : 0) |
+           (near ? POS_NEAR : 0);
 }
 
 /* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
@@ -777,6 +789,24 @@ static int fix_flagged(const mca_nav_t *nav, uint8_t vmask)
         }
     }
     return 0;
+}
+
+/* CS filter (re)started at ned (a fix, or N and E at the position reference: GPS steps 2-4), no
+ * compensation acceleration. Its memories' T start NaN, "no update yet": gps_cs reports an axis'
+ * memory T, which only a successful update writes (a numerically failed one leaves the axis, and
+ * so its T, unchanged). */
+static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
+{
+    mca_cs3_init_nocheck(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel); /* checked at init and entry */
+    for (size_t i = 0; i < 3u; ++i) {
+        nav->acc_comp_n[i] = 0.0f;
+        nav->cs.axis[i].rs.t_stat = NAN;
+    }
+    for (size_t i = 0; i < 2u; ++i) { /* the position return rule's memory (GPS step 4) */
+        nav->pos_prev[i] = NAN;
+        nav->pos_jump[i] = 0.0f;
+    }
+    nav->step_flags &= (uint8_t)~STEP_REF; /* and its reference: the next quiet fix's */
 }
 
 /* GPS steps 2-4 of a fix within dt_max of the last one (ALGORITHMS.md 8): the CS predict to
@@ -806,7 +836,7 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
      * in (not plain, which handles none, nor fuzzy rows, which holds the position row out); the
      * fixes' motion from their velocities (the trapezoid): a fault the CS takes in through its
      * velocity moves the CS prediction, not them */
-    int pos_end = 0;
+    int pos = 0, near = POS_NEAR, ran = 0;
     const int vv = has_vne && (nav->prev_vel_mask & 3u) == 3u;
     for (size_t i = 0; i < 2u; ++i) {
         const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
@@ -815,7 +845,10 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
              * CS's predicted change, as without velocities */
             const float d = vv && nav->step_hold < 2u ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i])
                                                       : nav->cs.axis[i].x[0] - x0[i];
-            pos_end |= pos_return(nav, i, ned[i], rp[i], d, t);
+            const int b = pos_return(nav, i, ned[i], rp[i], d, t);
+            pos |= b;
+            near &= b;
+            ran = 1;
         }
     }
     /* No report (T is read from the axis memory; N and E can then share one covariance
@@ -829,8 +862,33 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     }
     /* the end of a velocity fault the CS took in (GPS step 3): the step test's end of a fault, which
      * the CS then flags (in fuzzy rows and IGG-III: N or E left the velocity out) */
-    const int vel_end = (nav->step_flags & STEP_RET) != 0u && fix_flagged(nav, fv->vel_mask);
-    nav->step_flags = (uint8_t)(vel_end || pos_end ? nav->step_flags | STEP_RET : nav->step_flags & ~STEP_RET);
+    const int flagged = fix_flagged(nav, fv->vel_mask);
+    const int ret = ((nav->step_flags & STEP_RET) != 0u && flagged) || (pos & POS_RETURN) != 0;
+    if (ret) {
+        /* the restart (GPS steps 3 and 4): N and E at the position reference when the fix is
+         * within the material bound of it on both, with variance sigma_p^2 (the next fix splits
+         * its innovation between p and eps_p); else at the fix */
+        const int at_ref = ran && near != 0 && (nav->step_flags & STEP_REF) != 0u;
+        float start[3] = {ned[0], ned[1], ned[2]};
+        if (at_ref) {
+            mca_copyf(start, nav->u.step.ref, 2u);
+        }
+        cs_start(nav, start, fv->vel_ned_mps);
+        for (size_t i = 0; at_ref && i < 2u; ++i) {
+            nav->cs.axis[i].p[0] = nav->cs.axis[i].cfg.sigma_p_m * nav->cs.axis[i].cfg.sigma_p_m;
+        }
+        nav->step_flags |= STEP_RET;
+    } else {
+        nav->step_flags &= (uint8_t)~STEP_RET;
+        /* the position reference: the CS position of a fix nothing was suspect in (no jump, no
+         * fault pending, not flagged, not held), carried on by the fixes' motion (pos_return) */
+        if (ran && nav->aligned && (pos & POS_BUSY) == 0 && !flagged && nav->step_hold == 0u) {
+            for (size_t i = 0; i < 2u; ++i) {
+                nav->u.step.ref[i] = nav->cs.axis[i].x[0];
+            }
+            nav->step_flags |= STEP_REF;
+        }
+    }
     return st;
 }
 
@@ -902,22 +960,6 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
     }
 }
 
-/* CS filter (re)started at a fix (GPS steps 2 and 3), no compensation acceleration. Its memories'
- * T start NaN, "no update yet": gps_cs reports an axis' memory T, which only a successful
- * update writes (a numerically failed one leaves the axis, and so its T, unchanged). */
-static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
-{
-    mca_cs3_init_nocheck(&nav->cs, &nav->cfg.cs_h, &nav->cfg.cs_v, ned, vel); /* checked at init and entry */
-    for (size_t i = 0; i < 3u; ++i) {
-        nav->acc_comp_n[i] = 0.0f;
-        nav->cs.axis[i].rs.t_stat = NAN;
-    }
-    for (size_t i = 0; i < 2u; ++i) { /* the position return rule's memory (GPS step 4) */
-        nav->pos_prev[i] = NAN;
-        nav->pos_jump[i] = 0.0f;
-    }
-}
-
 mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
 {
     if (nav == NULL || fix == NULL) {
@@ -960,11 +1002,10 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
              * no attitude observation. A fix the step test found the fault's end, which the CS
              * then flags (GPS step 6), restarts the CS: the CS has the fault in (GPS step 3);
              * so does a fix back where the fixes were before a position fault the CS took in
-             * (GPS step 4; gps_cs sets STEP_RET for both). The step test's hold goes on: the
-             * first is released, and a position return in a burst of both is no velocity end */
-            if ((nav->step_flags & STEP_RET) != 0u) {
-                cs_start(nav, ned, fv.vel_ned_mps);
-            } else if (st == MCA_OK) {
+             * (GPS step 4; gps_cs restarts it for both, at the position reference when the fix
+             * is near it, and sets STEP_RET). The step test's hold goes on: the first is
+             * released, and a position return in a burst of both is no velocity end */
+            if ((nav->step_flags & STEP_RET) == 0u && st == MCA_OK) {
                 gps_attitude(nav, fix, &fv);
             }
         }
@@ -979,7 +1020,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                                                      (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) == 0u);
         mca_copyf(nav->u.step.v, fv.vel_ned_mps, 2u);
         nav->u.step.var = fv.s_acc_mps * fv.s_acc_mps;
-        nav->step_flags = (uint8_t)((nav->step_flags & STEP_ARMED) | (ok ? STEP_ANCHOR : 0u) |
+        nav->step_flags = (uint8_t)((nav->step_flags & (STEP_ARMED | STEP_REF)) | (ok ? STEP_ANCHOR : 0u) |
                                     ((nav->step_flags & STEP_TESTED) != 0u ? STEP_PRE : 0u));
     }
     nav->prev_vel_mask = fv.vel_mask;

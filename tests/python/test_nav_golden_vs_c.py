@@ -21,7 +21,7 @@ decisions are compared through what the C output exposes: the CS axes' alarms (f
 and skipped (a flagged fix and the ``tau_a`` after it skip them, GPS step 6); a velocity step test
 hold shows as both horizontal alarms and skipped observations. A case whose own tolerances differ
 (``Case.tol``) says why next to them (``TOL_COAST``, ``TOL_COAST_GUARD``, ``TOL_GUARD_BOTH``, ``TOL_IGG``,
-``TOL_AKF``, ``TOL_FTA_INTAKE``);
+``TOL_AKF``, ``TOL_FTA_INTAKE``, ``TOL_REF_FAR``);
 a case where the C differs from the spec is an ``xfail(strict=True)`` with the diagnosis
 (``XFAIL``).
 """
@@ -38,6 +38,7 @@ import pytest
 from mcahrs import core, errors, sim
 from mcahrs.golden import attitude as gatt
 from mcahrs.golden import cs as gcs
+from mcahrs.golden import geo as ggeo
 from mcahrs.golden import nav as gnav
 from mcahrs.golden import robust as grobust
 from mcahrs.samples import GNSS_HAS_ALT, GNSS_HAS_VEL_D, GNSS_HAS_VEL_NE, Recording
@@ -167,6 +168,14 @@ TOL_AKF: dict[str, float] = {"acc_mps2": 1e-3, "cs_var_rel": 1e-3}
 # acceleration 7.2e-5 m/s^2 at 27.1 s, back to 6e-6 after 28 s (seeds 2 and 3: 6.7e-4 / 1.4e-4 and 4.0e-4 /
 # 1.7e-4, seed 2's velocity 3.2e-4 m/s). No decision differs.
 TOL_FTA_INTAKE: dict[str, float] = {"acc_mps2": 3e-4, "cs_var_rel": 1e-3}
+# A restart from the position reference far from home (fta_car_pos_fault_rx, CAR_POS_FAULT; GPS step 4,
+# session 25): the N and E fixes' float32 positions, 2 km from home, move the aided T by up to 4.4e-4
+# relative a rounding, and the case's largest gps_T gap a 10 s grows with the distance, 4e-4 at 50 s to
+# 1.19e-3 at 110 s, before the reference changes anything. The restart at 120.0 s starts N and E at the
+# reference with P_NN = sigma_p^2 = 6.25 m^2 (p0_var 25 at the fix), so the position rows weigh more in T
+# for the fixes after it: measured 1.52e-3 relative at 123.3 s (C 0.903605, golden 0.905121), 1.08e-3 at
+# 130 s; every decision equal, the restart's position within 3e-4 m on both sides.
+TOL_REF_FAR: dict[str, float] = {"gps_T_rel": 2e-3}
 
 # The velocity step test's rules of ALGORITHMS.md 8, GPS step 3 (fuzzy rows, the receiver model, the
 # simulated car; tests/python/test_nav.py's last two tests at short, fast recordings). An 18 s, 1.0 m/s
@@ -190,18 +199,20 @@ CAR_GUARD_BOTH_FAULTS = ((10.1, 30.1, 38.0, 4.7, 120.0),)
 # E -24 m, velocity clean; bench_outliers.py's long fault) over 20-120 s of the car's cruise, braking,
 # stop and pull-away, with the receiver model. FTA and IGG-III take it in within a few fixes (the GPS-error
 # state holds it); the fixes' jump at its start stays ~70 % in J, so at the first clean fix (120.0 s)
-# the jump back leaves J within half of the innovation on N and E, and the CS restarts from that fix
+# the jump back leaves J within half of the innovation on N and E, and the CS restarts at that fix
 # (its position moves 26 m there; measured on seeds 1-3, and with AKF and fuzzy reject or inflate too).
+# In both cases of it N and E restart at the position reference, near the fix (see CAR_POS_FAULT_40S).
 CAR_POS_FAULT = ((20.0, 120.0, 30.0, 0.0, 306.87),)
 # The same rule on a turning vehicle, where its jump definition matters (GPS step 4: j = (z - z_prev) - d,
 # d the trapezoid T (v + v_prev) / 2 of the fixes' N (E) velocities): a 25 s, 30 m position fault (N 15,
 # E -26 m) over 20-45 s of the fixed-wing's first turn (30 deg of bank, 5.7 m/s^2, to ~33 s) and the leg
 # after it, fixes at 2 Hz (T = 0.5 s), FTA with the receiver model (jump bound 1.65 m). The onset's jump
 # stays 92 % in J (13.6 / -24.3 m at 44.5 s), the end's (-15.5 / +24.8 m) leaves J at -1.8 / +0.5 against
-# nu -15.2 / +24.8: N and E return and the CS restarts from the first clean fix (45.0 s, fix 90), on both
-# sides. With the predicted change p - p_0 as d (until session 24) FTA's gamma of 3-6 on N (nu 15-20 m)
-# leaves N on its own prediction through the turn, 2-5 m a fix behind the fixes, and those were summed as
-# jumps: J of N grew 15 -> 74 m, the end left J at +55 / -23 m, no return, no restart to the end (55 s).
+# nu -15.2 / +24.8: N and E return and the CS restarts at the first clean fix (45.0 s, fix 90; N and E from
+# the position reference), on both sides. With the predicted change p - p_0 as d (until session 24) FTA's
+# gamma of 3-6 on N (nu 15-20 m) leaves N on its own prediction through the turn, 2-5 m a fix behind the
+# fixes, and those were summed as jumps: J of N grew 15 -> 74 m, the end left J at +55 / -23 m, no return,
+# no restart to the end (55 s).
 # At the simulator's 5 Hz both definitions restart at the end (the lag a fix stays under the bound).
 FIXEDWING_POS_FAULT_2HZ = ((20.0, 45.0, 30.0, 0.0, 300.0),)
 # Only a fix that jumped returns while a fault is pending (GPS step 4: the axis returns when this fix's j was
@@ -250,12 +261,26 @@ CAR_RTK_BURST_BOTH = ((20.0, 30.0, 20.0, 2.0, 30.0),)
 # makes the step test hold from 20.4 s to the end of the recording (n 48 at 29.8 s, within the n T < 20 s
 # guard), so the fault's end (21.0 s, fix 105) is the hold's 4th fix: its d is the predicted change,
 # j = -17.7 / +23.7 m leaves J at -0.8 / -0.1 m against nu -17.7 / +23.8 m, N and E return and the CS
-# restarts there, on both sides (its position moves 3.6 m: AKF held the fault in eps_p). With the rule
-# before (no jump counted on such a fix) J stayed +16.9 / -23.7 m, no return and no restart to the end
-# (30 s): the golden model then parts from the C at 21.1 s (13 / 14 roll/pitch decisions, a flag event).
+# restarts there, on both sides (N and E from the position reference; its position moves 4.1 m: AKF held
+# the fault in eps_p). With the rule before (no jump counted on such a fix) J stayed +16.9 / -23.7 m, no
+# return and no restart to the end (30 s): the golden model then parts from the C at 21.1 s (13 / 14
+# roll/pitch decisions, a flag event).
 # The fixes' velocities are clean here, so their trapezoid gives the same j within 0.2 m (the seed 15 car
 # of bench_outliers.py held for a wrong yaw, not a velocity fault).
 CAR_POS_FAULT_END_HELD = ((10.0, 21.0, 30.0, 0.0, 306.87),)
+# The position reference (GPS step 4, session 25): a restart at a fault's end starts N and E at p_ref (the CS
+# position of the last quiet fix, carried on by the fixes' d) with position variance sigma_p^2, when both are
+# within the material bound of it. A 40 s, 30 m position fault (N 18, E -24 m, velocity clean) over 20-60 s
+# of the car's cruise, braking, 10 s stop and pull-away, fuzzy inflate with the receiver model (material
+# bound 9.8 m). The last quiet fix is 19.8 s; the onset jumps +17.6 / -24.0 m into J (no quiet fix after it:
+# a fault pending), and fuzzy inflate takes the fault in (|nu| under 0.9 m over 59-60 s). At the first clean
+# fix (60.0 s, fix 300) the jump back leaves J at -2.5 / +2.8 m against nu -18.0 / +23.8 m: N and E return,
+# and the fix is -2.2 / -3.8 m from p_ref (carried 40 s, 200 fixes): both near, so the CS restarts at p_ref
+# with P_NN = sigma_p^2 = 6.25 m^2, 4.41 m from the fix, on both sides. The golden model without the reference
+# (the restart at the fix, P_NN = p0_var 25 m^2) parts from the C at 60.1 s: 4.41 m of horizontal position
+# (3.84 m on E), the CS P 0.75 relative, gps_T 1.06 relative; no decision differs. With it every gap is
+# within TOL (measured 5.3e-6 rad of attitude, 3.2e-4 m, 3.7e-5 relative on the CS P, 6.5e-4 on gps_T).
+CAR_POS_FAULT_40S = ((20.0, 60.0, 30.0, 0.0, 306.87),)
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -375,8 +400,9 @@ CASES: dict[str, Case] = {
     ),
     # IGG-III also reaches GPS step 4's return with nothing pending (J 0 since the step test's restart at
     # the burst of both's end, 29.0 s): the CS drifts from the clean fixes after it and N returns at 32.4 s
-    # (nu -11.8 m; the CS position moves 13.1 m), on both sides (test below). Requiring this fix's jump
-    # always, the golden model parts from the C there (3 / 4 roll/pitch decisions).
+    # (nu -11.7 m; N and E near the position reference, from which the CS restarts: its position moves
+    # 12.3 m), on both sides (test below). Requiring this fix's jump always, the golden model parts from the
+    # C there (3 / 4 roll/pitch decisions).
     "igg3_car": Case("car_accel_brake", "ground", 70.0, profile="igg3", gnss_faults=CAR_FAULTS, tol=TOL_IGG),
     # The velocity step test (ALGORITHMS.md 8, GPS step 3): a burst held to its end, a spike that
     # passed blamed instead of the clean fix after it, and the end of a fault of both the CS took in at
@@ -438,9 +464,16 @@ CASES: dict[str, Case] = {
     ),
     # The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4; CAR_POS_FAULT). IGG-III's
     # steep weights through the fault reach 2.2e-3 m/s, 1.2e-3 m/s^2, 2.6e-3 relative on the CS P at the
-    # pull-away of 82 s (within TOL_IGG; 1e-5 after the restart); FTA stays within TOL.
+    # pull-away of 82 s (within TOL_IGG; 1e-5 after the restart); FTA within TOL but its T after the
+    # restart from the position reference (TOL_REF_FAR).
     "fta_car_pos_fault_rx": Case(
-        "car_accel_brake", "ground", 140.0, profile="fta", receiver_model=True, gnss_faults=CAR_POS_FAULT
+        "car_accel_brake",
+        "ground",
+        140.0,
+        profile="fta",
+        receiver_model=True,
+        gnss_faults=CAR_POS_FAULT,
+        tol=TOL_REF_FAR,
     ),
     "igg3_car_pos_fault_rx": Case(
         "car_accel_brake",
@@ -505,6 +538,16 @@ CASES: dict[str, Case] = {
         profile="igg3",
         gnss_faults=CAR_RTK_BURST_BOTH,
         tol=TOL_IGG,
+    ),
+    # The restart from the position reference (CAR_POS_FAULT_40S): the golden model restarting at the fix
+    # instead parts from the C at 60.1 s (4.41 m, CS P 0.75 relative; no decision differs).
+    "fuzzy_inflate_car_pos_fault_ref_rx": Case(
+        "car_accel_brake",
+        "ground",
+        75.0,
+        profile="fuzzy-inflate",
+        receiver_model=True,
+        gnss_faults=CAR_POS_FAULT_40S,
     ),
 }
 
@@ -909,20 +952,25 @@ RESTARTS_INSIDE: dict[str, tuple[float, ...]] = {"igg3_car_rtk_burst_both": (26.
 RESTART_MOVE_M: dict[str, float] = {"akf_car_pos_fault_end_held_rx": 3.0}
 
 
-def _restarts(name: str) -> tuple[Recording, list[list[int]], np.ndarray]:
+def _restarts(name: str, from_ref: bool = False) -> tuple[Recording, list[list[int]], np.ndarray]:
     """The case's recording, the fixes (indices) after which the CS N position variance is
-    ``p0_var_m2`` (section 2: a CS (re-)initialisation; no update lands on it) in the C and the golden
-    output, and each fix's output row after it."""
+    ``p0_var_m2`` (section 2: a CS (re-)initialisation at the fix; no update lands on it) or
+    ``sigma_p_m^2`` of ``cs_h`` (ALGORITHMS.md 8, GPS step 4, the position reference: a restart at the
+    end of a fault that starts N and E at ``p_ref`` takes that variance in place of ``p0_var_m2``; no
+    update lands on it either) in the C and the golden output, and each fix's output row after it.
+    With ``from_ref`` only the restarts from the reference (``sigma_p_m^2``)."""
     case = CASES[name]
     rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording
     c, g = _runs(name)
-    p0 = _configs(case, rec)[1].cs_h.p0_var_m2
+    cs_h = _configs(case, rec)[1].cs_h
+    starts = (cs_h.sigma_p_m**2,) if from_ref else (cs_h.p0_var_m2, cs_h.sigma_p_m**2)
     row = np.searchsorted(g["t_us"], rec.gnss["t_rx_us"].astype(np.int64), side="right")  # after each fix
     ok = row < len(g["t_us"])
-    restarts = [
-        np.flatnonzero(ok)[np.isclose(p[row[ok], 0].astype(np.float64), p0, rtol=1e-6, atol=0.0)].tolist()
-        for p in (c["cs_var"], g["cs_P_diag"])
-    ]
+    restarts = []
+    for p in (c["cs_var"], g["cs_P_diag"]):
+        p_nn = p[row[ok], 0].astype(np.float64)
+        hit = np.any([np.isclose(p_nn, v, rtol=1e-6, atol=0.0) for v in starts], axis=0)
+        restarts.append(np.flatnonzero(ok)[hit].tolist())
     return rec, restarts, row
 
 
@@ -930,8 +978,9 @@ def test_cs_drifted_from_clean_fixes_with_no_position_fault_pending_returns_on_b
     """ALGORITHMS.md 8, GPS step 4, the return's first condition: this fix's ``j`` a jump *or* ``4 J^2 <=
     B`` (no position fault pending). In igg3_car (CAR_FAULTS) the CS restarts at home, at the step test's
     ends of the velocity bursts (19.0, 24.0 s) and of the burst of both (29.0 s), and at 32.4 s, where no
-    fix jumped but J is 0 (cleared at 29.0 s) and the CS drifted from the clean fixes (N: nu -11.8 m):
-    the same fixes on both sides. Requiring the jump always there is no restart at 32.4 s."""
+    fix jumped but J is 0 (cleared at 29.0 s) and the CS drifted from the clean fixes (N: nu -11.7 m):
+    the same fixes on both sides. Every restart but home starts N and E at the position reference (N and
+    E near it; ``_restarts`` counts both kinds). Requiring the jump always there is no restart at 32.4 s."""
     rec, restarts, _ = _restarts("igg3_car")
     t_fix_us = rec.gnss["t_us"].astype(np.int64)
     expected = [int(np.flatnonzero(t_fix_us == round(t * 1e6))[0]) for t in (0.0, 19.0, 24.0, 29.0, 32.4)]
@@ -953,14 +1002,16 @@ def test_cs_drifted_from_clean_fixes_with_no_position_fault_pending_returns_on_b
 def test_long_position_fault_ends_with_a_cs_restart_at_the_same_fix_on_both_sides(name: str) -> None:
     """The CAR_POS_FAULT, FIXEDWING_POS_FAULT_2HZ / _1HZ, CAR_POS_FAULT_END_HELD and CAR_RTK_BURST_BOTH
     cases reach the rule they are for (ALGORITHMS.md 8, GPS step 4, the end of a position fault the CS
-    took in): the CS, which took the fault in, restarts from the first clean fix after it, on both sides,
+    took in): the CS, which took the fault in, restarts at the first clean fix after it, on both sides,
     and at no other fix but home (in the 1 Hz case, not inside the fault: with the onset's jump pending
     only a fix that jumped returns)
     and those of ``RESTARTS_INSIDE`` (in the burst of both, the return on a held fix at 26.6 s: its jump
     against the predicted change). The end of CAR_POS_FAULT_END_HELD is a fix the step test holds after
-    the hold's first: its jump against the predicted change is counted, so it returns. A CS
-    (re-)initialisation sets the N position variance to ``p0_var_m2`` (section 2), which no update lands
-    on: the fixes whose step leaves it there are the restarts."""
+    the hold's first: its jump against the predicted change is counted, so it returns. The ends' restarts
+    of the receiver-model cases start N and E at the position reference (the fix near it; CAR_RTK_BURST_BOTH's
+    centimetre bound leaves its fixes far from it: both restarts at the fix). A CS (re-)initialisation sets
+    the N position variance to ``p0_var_m2`` (section 2), or ``sigma_p_m^2`` when it starts from the position
+    reference, which no update lands on: the fixes whose step leaves either there are the restarts."""
     case = CASES[name]
     rec, restarts, row = _restarts(name)
     g = _runs(name)[1]
@@ -974,6 +1025,44 @@ def test_long_position_fault_ends_with_a_cs_restart_at_the_same_fix_on_both_side
     # short fault in eps_p, whose move the output does not show)
     r = row[first_clean]
     assert np.hypot(*(g["pos_ned"][r, :2] - g["pos_ned"][r - 1, :2])) > RESTART_MOVE_M.get(name, 15.0)
+
+
+# The least horizontal distance of the CS position from the fix's at the restart from the position reference
+# of fuzzy_inflate_car_pos_fault_ref_rx (m; measured 4.41 m on both sides; a restart at the fix: 0).
+REF_OFFSET_M = 4.0
+
+
+def test_position_fault_end_restarts_from_the_position_reference_on_both_sides() -> None:
+    """ALGORITHMS.md 8, GPS step 4, the position reference: in fuzzy_inflate_car_pos_fault_ref_rx
+    (CAR_POS_FAULT_40S) the CS restarts at home and at the fault's first clean fix (60.0 s) only, on both
+    sides, and that restart starts N and E at ``p_ref``: the N position variance right after it is
+    ``sigma_p_m^2`` of ``cs_h`` (``p0_var_m2`` at the fix), and the CS horizontal position at the fix's
+    time is more than ``REF_OFFSET_M`` from the fix's position (a restart at the fix puts it there). The
+    output is the CS carried to the IMU time with ``a = 0`` after a restart: at the fix's time it is
+    ``pos - vel tau``."""
+    name = "fuzzy_inflate_car_pos_fault_ref_rx"
+    case = CASES[name]
+    rec, restarts, row = _restarts(name)
+    from_ref = _restarts(name, from_ref=True)[1]
+    c, g = _runs(name)
+    t_fix_us = rec.gnss["t_us"].astype(np.int64)
+    first_clean = int(np.flatnonzero(t_fix_us >= round(case.gnss_faults[0][1] * 1e6))[0])
+    assert restarts[0] == restarts[1] == [0, first_clean]
+    assert from_ref[0] == from_ref[1] == [first_clean]
+    fix, home = rec.gnss[first_clean], rec.gnss[0]  # both outside the fault
+    z = ggeo.ned_from_home(
+        int(fix["lat_e7"]),
+        int(fix["lon_e7"]),
+        int(fix["alt_mm"]),
+        int(home["lat_e7"]),
+        int(home["lon_e7"]),
+        int(home["alt_mm"]),
+    )
+    r = row[first_clean]
+    tau = (int(g["t_us"][r]) - int(t_fix_us[first_clean])) * 1e-6
+    for pos, vel in ((c["pos_ned_m"], c["vel_ned_mps"]), (g["pos_ned"], g["vel_ned"])):
+        p = pos[r, :2].astype(np.float64) - vel[r, :2].astype(np.float64) * tau
+        assert math.hypot(p[0] - z[0], p[1] - z[1]) > REF_OFFSET_M
 
 
 @pytest.mark.parametrize("axis", [0, 2])

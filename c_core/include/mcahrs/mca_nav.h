@@ -143,6 +143,7 @@ typedef struct {
             float s0[2];  /**< the step that started the last hold */
             float var;    /**< the anchor's variance an axis: its fix's s_acc^2, plus coast_h t^2 a fix held */
             float pre[2]; /**< the anchor before the last, carried on to the last fix */
+            float ref[2]; /**< N, E: the position reference of a restart (ALGORITHMS.md 8, GPS step 4) */
         } step;
     } u;
     uint8_t init_still;      /**< every sample of the window was still */

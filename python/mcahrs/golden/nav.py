@@ -16,7 +16,7 @@ before (``v_pre``, *pre*), the held step's guard, the end of a fault the CS took
 every mode the test runs in, when step 6 flags the fix) and the test in every mode but plain (a hold
 in the modes other than fuzzy rows: no course observation), GPS step 1's velocity and accuracy
 checks, GPS step 4's numerically failed axis update and its end of a position fault the CS took
-in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
+in with its position reference, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
     ``init_still_s``, ``init_timeout_s``, ``cs_lag_s``, ``imu_dt_max_s``, the CS ``dt_max_s``
@@ -174,7 +174,8 @@ in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
     that update's rows), and a failed axis (no detection, no T) flags nothing. The flag is only the
     restart's condition: the restarted fix does not become the last flagged one (steps 5-6 are not
     done), so it starts no ``tau_a`` hold. The restart is choice 17's, after the update: every axis (D
-    included) re-initialised at the fix's position and velocity, memories, coasting marks and priors
+    included) re-initialised at the fix's position (N and E at the position reference when near it,
+    choice 25) and velocity, memories, coasting marks and priors
     cleared, ``a_last`` 0, ``n`` as the test left it (0: the hold has just ended, or none was); the
     reported ``gps_T`` stay the update's tested T (the axes were updated), and a later failed
     update reports NaN until one succeeds (the CS restarted). Steps 5-6 are skipped (no compensation,
@@ -206,7 +207,8 @@ in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
     and ``4 J^2 <= nu^2``. A fix whose ``j`` is undefined (the first after a (re-)initialisation, ``J``
     0 then) or within the bound may thus return when nothing is pending: a CS that drifted from clean
     fixes restarts from them. The return is decided before the update and
-    acted on after it: the restart is choice 23's (every axis re-initialised at the fix, memories,
+    acted on after it: the restart is choice 23's (every axis re-initialised at the fix, or N and E at
+    the position reference, choice 25; memories,
     coasting marks, priors, ``a_last``; the step test's ``n`` as it is, so a fix it held stays held and
     step 7 writes no anchor), which also sets ``z_prev`` NaN and ``J = 0``, as the
     home start and both other restarts do (``_cs_restart``); the ``z_prev = z`` of this fix is not
@@ -218,6 +220,26 @@ in, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
     coasting marks being read after the restart cleared them (a velocity row step 4 left out is then
     no bar: the CS restarted at the fix's velocity); an axis' numerical failure on the same fix is
     raised after it. On a step 1 error, or an input check of step 4, the memory is as it was.
+25. The position reference (GPS step 4, session 25): one ``p_ref`` per N and E axis and one flag *ref* for
+    both (kept with ``z_prev`` and ``J``, ``_PosJumps``; N and E share ``cs_h``'s robust mode, so both run
+    the rule or neither). Only the rule's axes (choice 24) touch them: in plain and fuzzy rows *ref* is
+    never set, so their restarts are always at the fix. On a fix with *ref* set (aligned: only a quiet
+    fix sets it, and alignment is never undone), each axis, after ``J``'s forgetting and ``z_prev = z``,
+    does ``p_ref += d`` with the jump's own ``d`` (the trapezoid, or the predicted change ``p - p_0``) and
+    is *near* when ``(z - p_ref)^2 <= B`` (``z`` the fix's NED, ``B`` the axis' material bound of this
+    fix); ``p_ref`` is carried on a far fix too. Both restarts of a fix (step 3's end of a fault the CS
+    took in and step 4's return: "as step 3's", so the same re-initialisation) start N and E at ``p_ref``
+    when *ref* was set and both N and E are near on this fix: ``x = [p_ref, v_fix, 0, 0, 0]``, ``P =
+    diag(sigma_p_m^2, v0_var, a0_var, sigma_p_m^2, sigma_v^2)``, D at the fix's ``ned``; otherwise all
+    three at ``ned`` as before. Every (re-)initialisation (home, gap, either end of a fault) clears *ref*
+    (``_cs_restart`` renews ``_PosJumps``). A fix is *quiet* when: it does not restart the CS (steps 3-4;
+    a gap's re-initialisation never gets here), aligned, the rule ran on N and E and neither of them
+    summed a jump nor has ``4 J^2 > B`` (``J`` after this fix's jump and forgetting, each axis its own
+    ``B``), step 6's flag (choice 19, ``_flags_fix``) of this fix's N and E updates is clear, and the step
+    test's ``n`` after step 3 is 0; it then sets ``p_ref`` to N and E's CS position ``x[0]`` after step 4
+    and sets *ref*. A fix whose N or E update failed numerically (choice 22; steps 5-6 not done) is not
+    excluded: the spec's conditions do not name it; a failed axis flags nothing (choice 23), and its
+    ``p`` is the predicted one it keeps.
 """
 
 from __future__ import annotations
@@ -545,6 +567,18 @@ class _PosJumps:
 
     z_prev: np.ndarray = field(default_factory=lambda: np.full(2, math.nan))  # the last fix's position
     J: np.ndarray = field(default_factory=lambda: np.zeros(2))  # the sum of the fixes' jumps
+    # the position reference (session 25): the CS position of the last quiet fix, carried on by the
+    # fixes' d; ref: p_ref exists (cleared with the rest by every CS (re-)initialisation)
+    p_ref: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    ref: bool = False
+
+
+class _PosRule(NamedTuple):
+    """What GPS step 4's position rule found on a fix, before the update (choices 24, 25)."""
+
+    returned: bool  # N or E returns: the CS restarts after step 4
+    near: bool  # ref set and both N and E near p_ref: a restart on this fix starts N and E at p_ref
+    calm: bool  # the rule ran on N and E and neither jumped nor has a fault pending (quiet's part)
 
 
 class _Fix(NamedTuple):
@@ -993,7 +1027,7 @@ class Nav:
             self.cs.predict_aided(T, incs)
             # GPS step 4's jumps: against the predicted change on a fix the step test holds after the
             # hold's first (n > 1 now), whose velocity carries the fault
-            returned = self._position_return(
+            rule = self._position_return(
                 ned, T, r_h, p_0, fx.vel[:2] if has_ne else None, predicted=self.vst.n > 1
             )
             # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5); its inputs were bounded at
@@ -1024,9 +1058,16 @@ class Nav:
         # GPS step 4, the end of a position fault the CS took in: N or E returned (choice 24), the same
         # restart.
         vel_end = self.vst.ended and any(self._flags_end(i, reports[i], masks[i]) for i in (0, 1))
-        restart = vel_end or returned
+        restart = vel_end or rule.returned
+        # GPS step 6's flag of this fix (its N and E updates, read before any restart clears their marks)
+        flagged = any(self._flags_fix(i, reports[i], masks[i]) for i in (0, 1))
         if restart:
-            self._cs_restart(ned, v0)
+            # either restart starts N and E at the position reference when both are near it (choice 25)
+            self._cs_restart(ned, v0, from_ref=rule.near)
+        elif self.aligned and rule.calm and not flagged and self.vst.n == 0:
+            # a quiet fix: the position reference is the CS position after the update (choice 25)
+            self.jumps.p_ref = np.array([float(ax.x[0]) for ax in self.cs.axes[:2]])
+            self.jumps.ref = True
         if failure is not None or restart:
             # GPS step 4: the failed axes stay as predicted, the others updated; the CS was predicted
             # to the fix all the same, so step 7 is done (the next fix predicts from this one); steps
@@ -1037,7 +1078,6 @@ class Nav:
                 raise failure
             return
         a_cs = tuple(float(ax.x[2]) for ax in self.cs.axes)
-        flagged = any(self._flags_fix(i, reports[i], masks[i]) for i in (0, 1))
         if flagged:
             self.t_flag_us = fx.t_us
         # within tau_a (horizontal CS) of the last flagged fix, this one included: no roll/pitch
@@ -1084,14 +1124,23 @@ class Nav:
 
         self._step7(fx, has_vel, held, ran, reports)
 
-    def _cs_restart(self, ned: np.ndarray, v0: tuple[float, ...]) -> None:
+    def _cs_restart(self, ned: np.ndarray, v0: tuple[float, ...], from_ref: bool = False) -> None:
         """A CS (re-)initialisation at the fix's position ``ned`` and velocity ``v0`` (GPS step 2 at home;
         step 3 after a gap longer than ``dt_max`` and at the end of a fault the CS took in; step 4 at the
         end of a position fault the CS took in): the axes start afresh (robust memories, coasting marks
         and priors cleared, choice 17), the compensation acceleration (``a_last``) is 0, and the N and E
-        jump memory is cleared (``z_prev`` NaN, ``J = 0``). The velocity step test's ``n`` is left as it
-        is (the caller of the gap's re-initialisation sets ``n = 0``; at home it is 0 already)."""
-        self.cs.init(ned, v0)
+        jump memory is cleared (``z_prev`` NaN, ``J = 0``, the position reference's *ref* clear). With
+        ``from_ref`` (an end of a fault whose fix has *ref* set and both N and E near ``p_ref``, choice
+        25) N and E start at ``p_ref`` with position variance ``sigma_p_m^2`` in place of ``p0_var_m2``;
+        D, the velocities and the rest as at the fix. The velocity step test's ``n`` is left as it is
+        (the caller of the gap's re-initialisation sets ``n = 0``; at home it is 0 already)."""
+        p0 = np.array(ned, dtype=np.float64)
+        if from_ref:
+            p0[:2] = self.jumps.p_ref
+        self.cs.init(p0, v0)
+        if from_ref:
+            for ax in self.cs.axes[:2]:
+                ax.P[0, 0] = ax.cfg.sigma_p_m**2
         self.cs_T_set = [False, False, False]
         self.a_last = (0.0, 0.0, 0.0)
         self.jumps = _PosJumps()
@@ -1104,7 +1153,7 @@ class Nav:
         p_0: list[float],
         v_ne: tuple[float, ...] | None,
         predicted: bool,
-    ) -> bool:
+    ) -> _PosRule:
         """ALGORITHMS.md 8, GPS step 4, "The end of a position fault the CS took in" (choice 24): on N and
         E, after the predict and before the update, an axis whose robust mode is neither plain nor fuzzy
         rows sums the fix's position jumps the fixes' velocities do not explain, ``j = (z - z_prev) - d``
@@ -1120,11 +1169,19 @@ class Nav:
         the material bound (``4 J^2 <= B``: no position fault pending), and the innovation ``nu = z -
         (p + eps_p)`` is material, ``nu^2 > B = chi2_1(1e-4) (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``
         (``J`` after this fix's jump and forgetting).
-        Returns whether N or E returned (the caller restarts the CS after step 4). The axes of other
-        modes leave ``z_prev`` and ``J`` as they are."""
+        The position reference (choice 25), aligned only: when *ref* is set, ``p_ref += d`` (this fix's
+        ``d``, after ``J``'s update) and the axis is *near* when ``(z - p_ref)^2 <= B``.
+        Returns whether N or E returned (the caller restarts the CS after step 4), whether *ref* is set
+        and both N and E are near, and whether the rule ran on N and E with neither jumped nor a fault
+        pending (``4 J^2 > B``, this fix's ``J``). The axes of other modes leave ``z_prev``, ``J``,
+        ``p_ref`` and *ref* as they are."""
         k = chi2_quantile(POS_RETURN_LEVEL, 1)
         mem = self.jumps
         returned = False
+        use_ref = self.aligned and mem.ref
+        near = use_ref
+        calm = True
+        ran = 0
         # the trapezoid needs N/E velocity on both fixes: this one and the last one step 7 remembered
         v_prev = self.prev_vel[:2] if self.prev_has_vel[0] else None
         for i, ax in enumerate(self.cs.axes[:2]):
@@ -1144,13 +1201,18 @@ class Nav:
                 mem.J[i] += j
             mem.J[i] -= mem.J[i] * T / (POS_JUMP_FORGET * c.tau_p_s)
             mem.z_prev[i] = z
+            if use_ref:  # the reference carried on by the same d; near: within the material bound
+                mem.p_ref[i] += d
+                near = near and (z - mem.p_ref[i]) ** 2 <= material
             nu = z - (p + float(ax.x[3]))
             # a fix that jumped, or any with no position fault pending (J within half the material
             # bound), returns when the CS is materially off the fix and J is within half of that
             pending = 4.0 * mem.J[i] ** 2 > material
             if (jumped or not pending) and nu * nu > material and 4.0 * mem.J[i] ** 2 <= nu * nu:
                 returned = True
-        return returned
+            calm = calm and not jumped and not pending
+            ran += 1
+        return _PosRule(returned, near and ran == 2, calm and ran == 2)
 
     def _step7(
         self,
