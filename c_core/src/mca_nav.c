@@ -731,14 +731,15 @@ MCA_NOINLINE static float white_part(float acc, float white)
  * after the predict and before the update; d the position change the fixes' velocities say (or,
  * without them or on a fix the step test holds after its first, the CS's prediction). A jump of the
  * fix (its position change less d) beyond chi2_1(1e-4) of two fixes' R, or beyond a quarter of
- * the material bound, is summed, and the sum forgets over 5 tau_p. POS_RETURN when this fix jumped
- * or no fault is pending (the sum within half the material bound), the fix is material, beyond the
- * receiver error's wandering from the CS (nu^2 > chi2_1(1e-4) (sigma_p^2 + R)), and the jumps
- * summed are within half of nu: the fixes just jumped back where they were, or never left, and
- * the CS is not (a CS that drifted from a position fault's fixes is no return). POS_BUSY when
- * this fix jumped or a fault is pending; the position reference, when there is one, is carried
- * on by d, and POS_NEAR when the fix is within the material bound of it. */
-enum { POS_RETURN = 1, POS_BUSY = 2, POS_NEAR = 4 };
+ * the material bound, is summed, and the sum forgets over 5 tau_p. POS_RETURN when the fix is
+ * material, beyond the receiver error's wandering from the CS (nu^2 > chi2_1(1e-4) (sigma_p^2 +
+ * R)), and the jumps summed are within half of nu: the fixes just jumped back where they were, or
+ * never left, and the CS is not (a CS that drifted from a position fault's fixes is no return);
+ * gps_cs asks for this fix's jump (POS_JUMPED) too while a fault is pending on N or E
+ * (POS_PENDING: the sum beyond half the material bound). POS_BUSY when this fix jumped or a fault
+ * is pending; the position reference, when there is one, is carried on by d, and POS_NEAR when
+ * the fix is within the material bound of it. */
+enum { POS_RETURN = 1, POS_BUSY = 2, POS_NEAR = 4, POS_JUMPED = 8, POS_PENDING = 16 };
 MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, float d, float t)
 {
     const mca_cs_axis_t *ax = &nav->cs.axis[i];
@@ -764,8 +765,8 @@ MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, f
         *ref += d;
         near = (z - *ref) * (z - *ref) <= b;
     }
-    return ((jumped || !busy) && nu * nu > b && 4.0f * e * e <= nu * nu ? POS_RETURN : 0) | (busy ? POS_BUSY : 0) |
-           (near ? POS_NEAR : 0);
+    return (nu * nu > b && 4.0f * e * e <= nu * nu ? POS_RETURN : 0) | (busy ? POS_BUSY : 0) | (near ? POS_NEAR : 0) |
+           (jumped ? POS_JUMPED : 0) | (4.0f * e * e > b ? POS_PENDING : 0);
 }
 
 /* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
@@ -836,7 +837,7 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
      * in (not plain, which handles none, nor fuzzy rows, which holds the position row out); the
      * fixes' motion from their velocities (the trapezoid): a fault the CS takes in through its
      * velocity moves the CS prediction, not them */
-    int pos = 0, near = POS_NEAR, ran = 0;
+    int pos = 0, near = POS_NEAR, ran = 0, ax_bits[2] = {0, 0};
     const int vv = has_vne && (nav->prev_vel_mask & 3u) == 3u;
     for (size_t i = 0; i < 2u; ++i) {
         const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
@@ -848,8 +849,15 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
             const int b = pos_return(nav, i, ned[i], rp[i], d, t);
             pos |= b;
             near &= b;
+            ax_bits[i] = b;
             ran = 1;
         }
+    }
+    /* an axis returns on its jump, or with no fault pending on either axis: the restart takes both
+     * (GPS step 4) */
+    int ret_pos = 0;
+    for (size_t i = 0; i < 2u; ++i) {
+        ret_pos |= (ax_bits[i] & POS_RETURN) != 0 && ((ax_bits[i] & POS_JUMPED) != 0 || (pos & POS_PENDING) == 0);
     }
     /* No report (T is read from the axis memory; N and E can then share one covariance
      * update). An axis can fail only numerically, and then it is left unchanged
@@ -863,7 +871,7 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     /* the end of a velocity fault the CS took in (GPS step 3): the step test's end of a fault, which
      * the CS then flags (in fuzzy rows and IGG-III: N or E left the velocity out) */
     const int flagged = fix_flagged(nav, fv->vel_mask);
-    const int ret = ((nav->step_flags & STEP_RET) != 0u && flagged) || (pos & POS_RETURN) != 0;
+    const int ret = ((nav->step_flags & STEP_RET) != 0u && flagged) || ret_pos;
     if (ret) {
         /* the restart (GPS steps 3 and 4): N and E at the position reference when the fix is
          * within the material bound of it on both, with variance sigma_p^2 (the next fix splits

@@ -281,6 +281,28 @@ CAR_POS_FAULT_END_HELD = ((10.0, 21.0, 30.0, 0.0, 306.87),)
 # (3.84 m on E), the CS P 0.75 relative, gps_T 1.06 relative; no decision differs. With it every gap is
 # within TOL (measured 5.3e-6 rad of attitude, 3.2e-4 m, 3.7e-5 relative on the CS P, 6.5e-4 on gps_T).
 CAR_POS_FAULT_40S = ((20.0, 60.0, 30.0, 0.0, 306.87),)
+# Nothing pending is asked of both N and E (GPS step 4, session 25: an axis returns when its own j was a jump
+# or 4 J^2 <= B on N and on E, each its own J and B, and its own nu^2 > B and 4 J^2 <= nu^2): the multirotor
+# under IGG-III with the receiver model (material bound 9.8 m), a 30 m position fault mostly along E (azimuth
+# 84 deg: N 3.1, E 29.8 m) over 20-50 s, and inside it a velocity fault along N ramped in 0.5 m/s steps a
+# second to 2 m/s and back over 25-37 s (steps small enough that the velocity step test's end of a fault the
+# CS took in restarts nothing; 1 m/s steps restarted the CS at the first step down, 34.0 s, clearing J on both
+# sides and with either rule). The onset jumps +3.7 / +30.0 m into J (N within half the material bound, E
+# pending); IGG-III takes E's fault in (nu of E 0.9 m by 30 s, J of E +28.6 m at 34.4 s, +27.2 m at the end)
+# and follows the faulty N velocity past N's fixes: nu of N +3.1 m at 28 s, -10.4 m at 34.4 s, -13.3 m at 37.8
+# s, back to -0.3 m at 40 s, every j of N within the bound (J of N +3.5 m). With the rule before (4 J^2 <= B
+# of the axis itself) N returned at 34.4 s with E's fault pending: the CS restarted into it from that fix
+# (10.2 m N, 15.8 m E off the C's at 34.6 s), J went to 0, the fault's end (50.0 s, fix 250) jumped E back
+# -29.7 m for J -29.7 against nu -29.8 m (no return), and no restart followed to the end (60 s). With it N's
+# return waits on E (N materially off on the fixes of 34.4-37.8 s), and at the fault's end E returns (J -2.5
+# against nu -29.7 m) and the CS restarts there, on both sides (at the fix, moving 18.4 m: N's p_ref, carried
+# by the fixes' faulty velocities, is far). The benchmark's case (seed 33's 900 s multirotor) has no velocity
+# fault: IGG-III's N drifted 12 m from its fixes 28 s into the fault. In the 90 s runs tried here (seeds 1-6,
+# the E fault alone over 20-80 or 30-85 s) |nu| of N stayed under 0.8 sqrt(B), so no return; FTA, AKF, fuzzy
+# reject and fuzzy inflate on this recording restart at the same fixes with either rule (seeds 1-4).
+MULTIROTOR_POS_FAULT_E_VEL_N = ((20.0, 50.0, 30.0, 0.0, 84.0),) + tuple(
+    (25.0 + k, 37.0 - k, 0.0, 0.5, 0.0) for k in range(4)
+)
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -548,6 +570,21 @@ CASES: dict[str, Case] = {
         profile="fuzzy-inflate",
         receiver_model=True,
         gnss_faults=CAR_POS_FAULT_40S,
+    ),
+    # Nothing pending on N and on E (MULTIROTOR_POS_FAULT_E_VEL_N): the golden model with the rule before
+    # (4 J^2 <= B of the axis itself) parts from the C at 34.5 s (N's return into E's fault: 4 / 2
+    # roll/pitch decisions, a flag event; 10.2 / 15.8 m N / E at once, 29.8 m on E after the fault's end,
+    # 0.74 deg of roll/pitch). IGG-III's steep weights: TOL_IGG (measured 8.7e-5 m/s^2 at 28.1 s, 3.0e-4 m/s,
+    # 4.9e-4 m, 8.7e-5 relative on the CS P, 1.0e-4 on gps_T).
+    "igg3_multirotor_pos_fault_e_rx": Case(
+        "multirotor_aggressive",
+        "multirotor",
+        60.0,
+        seed=2,  # seed 1 parts the same way (32.8 s), but IGG-III's steep weights reach 1.6e-2 on gps_T
+        profile="igg3",
+        receiver_model=True,
+        gnss_faults=MULTIROTOR_POS_FAULT_E_VEL_N,
+        tol=TOL_IGG,
     ),
 }
 
@@ -997,19 +1034,22 @@ def test_cs_drifted_from_clean_fixes_with_no_position_fault_pending_returns_on_b
         "fta_fixedwing_pos_fault_1hz_rx",
         "akf_car_pos_fault_end_held_rx",
         "igg3_car_rtk_burst_both",
+        "igg3_multirotor_pos_fault_e_rx",
     ],
 )
 def test_long_position_fault_ends_with_a_cs_restart_at_the_same_fix_on_both_sides(name: str) -> None:
-    """The CAR_POS_FAULT, FIXEDWING_POS_FAULT_2HZ / _1HZ, CAR_POS_FAULT_END_HELD and CAR_RTK_BURST_BOTH
-    cases reach the rule they are for (ALGORITHMS.md 8, GPS step 4, the end of a position fault the CS
-    took in): the CS, which took the fault in, restarts at the first clean fix after it, on both sides,
-    and at no other fix but home (in the 1 Hz case, not inside the fault: with the onset's jump pending
-    only a fix that jumped returns)
+    """The CAR_POS_FAULT, FIXEDWING_POS_FAULT_2HZ / _1HZ, CAR_POS_FAULT_END_HELD, CAR_RTK_BURST_BOTH and
+    MULTIROTOR_POS_FAULT_E_VEL_N cases reach the rule they are for (ALGORITHMS.md 8, GPS step 4, the end of
+    a position fault the CS took in): the CS, which took the fault in, restarts at the first clean fix after
+    it, on both sides, and at no other fix but home (in the 1 Hz case, not inside the fault: with the onset's
+    jump pending only a fix that jumped returns; in the multirotor's, not at N's return while E's fault is
+    pending)
     and those of ``RESTARTS_INSIDE`` (in the burst of both, the return on a held fix at 26.6 s: its jump
     against the predicted change). The end of CAR_POS_FAULT_END_HELD is a fix the step test holds after
     the hold's first: its jump against the predicted change is counted, so it returns. The ends' restarts
     of the receiver-model cases start N and E at the position reference (the fix near it; CAR_RTK_BURST_BOTH's
-    centimetre bound leaves its fixes far from it: both restarts at the fix). A CS (re-)initialisation sets
+    centimetre bound leaves its fixes far from it, and MULTIROTOR_POS_FAULT_E_VEL_N's reference is carried
+    by the faulty N velocities: their restarts at the fix). A CS (re-)initialisation sets
     the N position variance to ``p0_var_m2`` (section 2), or ``sigma_p_m^2`` when it starts from the position
     reference, which no update lands on: the fixes whose step leaves either there are the restarts."""
     case = CASES[name]

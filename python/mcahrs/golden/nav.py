@@ -203,10 +203,13 @@ in with its position reference, and step by step against the C core in tests/pyt
     order: the jump is added (when ``z_prev`` is not NaN and past the bound), then ``J`` decays (this
     fix's jump included), then ``z_prev = z``, then the return test with that ``J``: the axis returns when
     (this fix's ``j`` was a jump, that is this fix added its ``j`` to that axis' ``J``, or ``4 J^2 <=
-    B``, the jumps summed within half the material bound: no position fault pending) and ``nu^2 > B``
-    and ``4 J^2 <= nu^2``. A fix whose ``j`` is undefined (the first after a (re-)initialisation, ``J``
-    0 then) or within the bound may thus return when nothing is pending: a CS that drifted from clean
-    fixes restarts from them. The return is decided before the update and
+    B`` on both N and E, each axis with its own ``J`` and ``B``: no position fault pending on either,
+    session 25) and ``nu^2 > B`` and ``4 J^2 <= nu^2`` (its own). Both axes' ``J`` are updated before
+    either is tested (``_position_return`` runs the bullets on N and E, then the return on each). A fix
+    whose ``j`` is undefined (the first after a (re-)initialisation, ``J`` 0 then) or within the bound
+    may thus return when nothing is pending on N or E: a CS that drifted from clean fixes restarts from
+    them; an axis whose CS drifted while the other axis' fault is pending does not (the restart
+    re-initialises N and E together). The return is decided before the update and
     acted on after it: the restart is choice 23's (every axis re-initialised at the fix, or N and E at
     the position reference, choice 25; memories,
     coasting marks, priors, ``a_last``; the step test's ``n`` as it is, so a fix it held stays held and
@@ -1166,9 +1169,10 @@ class Nav:
         tau_p)`` and keeps ``z_prev = z``; the jump is counted and may return on every fix alike (the
         hold's first fix, ``n = 1``, takes the velocities' ``d``). The axis *returns* when
         this fix's ``j`` was a jump (summed into ``J`` on this fix) or the jumps summed are within half
-        the material bound (``4 J^2 <= B``: no position fault pending), and the innovation ``nu = z -
-        (p + eps_p)`` is material, ``nu^2 > B = chi2_1(1e-4) (sigma_p^2 + R)``, and ``4 J^2 <= nu^2``
-        (``J`` after this fix's jump and forgetting).
+        the material bound on both N and E (``4 J^2 <= B`` of each axis, its own ``J`` and ``B``: no
+        position fault pending on either), and the innovation ``nu = z - (p + eps_p)`` is material,
+        ``nu^2 > B = chi2_1(1e-4) (sigma_p^2 + R)``, and ``4 J^2 <= nu^2`` (the axis' own; ``J`` after
+        this fix's jump and forgetting).
         The position reference (choice 25), aligned only: when *ref* is set, ``p_ref += d`` (this fix's
         ``d``, after ``J``'s update) and the axis is *near* when ``(z - p_ref)^2 <= B``.
         Returns whether N or E returned (the caller restarts the CS after step 4), whether *ref* is set
@@ -1177,13 +1181,17 @@ class Nav:
         ``p_ref`` and *ref* as they are."""
         k = chi2_quantile(POS_RETURN_LEVEL, 1)
         mem = self.jumps
-        returned = False
         use_ref = self.aligned and mem.ref
         near = use_ref
         calm = True
         ran = 0
         # the trapezoid needs N/E velocity on both fixes: this one and the last one step 7 remembered
         v_prev = self.prev_vel[:2] if self.prev_has_vel[0] else None
+        # per axis: this fix's j was a jump, a position fault is pending, and the CS is materially off
+        # the fix with J within half of that (nu^2 > B and 4 J^2 <= nu^2)
+        jumped_ax: list[bool] = []
+        pending_ax: list[bool] = []
+        off_ax: list[bool] = []
         for i, ax in enumerate(self.cs.axes[:2]):
             rc, c = ax.cfg.robust, ax.cfg
             if rc.mode == "plain" or (rc.mode == "fuzzy" and rc.fuzzy_reject == FUZZY_ROWS):
@@ -1205,13 +1213,16 @@ class Nav:
                 mem.p_ref[i] += d
                 near = near and (z - mem.p_ref[i]) ** 2 <= material
             nu = z - (p + float(ax.x[3]))
-            # a fix that jumped, or any with no position fault pending (J within half the material
-            # bound), returns when the CS is materially off the fix and J is within half of that
-            pending = 4.0 * mem.J[i] ** 2 > material
-            if (jumped or not pending) and nu * nu > material and 4.0 * mem.J[i] ** 2 <= nu * nu:
-                returned = True
+            pending = 4.0 * mem.J[i] ** 2 > material  # J beyond half the material bound
+            jumped_ax.append(jumped)
+            pending_ax.append(pending)
+            off_ax.append(nu * nu > material and 4.0 * mem.J[i] ** 2 <= nu * nu)
             calm = calm and not jumped and not pending
             ran += 1
+        # an axis that jumped, or any axis when no position fault is pending on either N or E (each its
+        # own J and B: the restart re-initialises both), returns when the CS is materially off its fix
+        none_pending = not any(pending_ax)
+        returned = any((jmp or none_pending) and off for jmp, off in zip(jumped_ax, off_ax, strict=True))
         return _PosRule(returned, near and ran == 2, calm and ran == 2)
 
     def _step7(
