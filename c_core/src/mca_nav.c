@@ -736,10 +736,9 @@ MCA_NOINLINE static float white_part(float acc, float white)
  * R)), and the jumps summed are within half of nu: the fixes just jumped back where they were, or
  * never left, and the CS is not (a CS that drifted from a position fault's fixes is no return);
  * gps_cs asks for this fix's jump (POS_JUMPED) too while a fault is pending on N or E
- * (POS_PENDING: the sum beyond half the material bound). POS_BUSY when this fix jumped or a fault
- * is pending; the position reference, when there is one, is carried on by d, and POS_NEAR when
- * the fix is within the material bound of it. */
-enum { POS_RETURN = 1, POS_BUSY = 2, POS_NEAR = 4, POS_JUMPED = 8, POS_PENDING = 16 };
+ * (POS_PENDING: the sum beyond half the material bound). The position reference, when there is
+ * one, is carried on by d, and POS_NEAR when the fix is within the material bound of it. */
+enum { POS_RETURN = 1, POS_NEAR = 2, POS_JUMPED = 4, POS_PENDING = 8 };
 MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, float d, float t)
 {
     const mca_cs_axis_t *ax = &nav->cs.axis[i];
@@ -758,15 +757,14 @@ MCA_NOINLINE static int pos_return(mca_nav_t *nav, size_t i, float z, float r, f
     nav->pos_jump[i] = e;
     nav->pos_prev[i] = z;
     const float nu = z - ax->x[0] - ax->x[3];
-    const int busy = jumped || 4.0f * e * e > b;
     int near = 0;
     if ((nav->step_flags & STEP_REF) != 0u) {
         float *ref = &nav->u.step.ref[i];
         *ref += d;
         near = (z - *ref) * (z - *ref) <= b;
     }
-    return (nu * nu > b && 4.0f * e * e <= nu * nu ? POS_RETURN : 0) | (busy ? POS_BUSY : 0) | (near ? POS_NEAR : 0) |
-           (jumped ? POS_JUMPED : 0) | (4.0f * e * e > b ? POS_PENDING : 0);
+    return (nu * nu > b && 4.0f * e * e <= nu * nu ? POS_RETURN : 0) | (near ? POS_NEAR : 0) | (jumped ? POS_JUMPED : 0) |
+           (4.0f * e * e > b ? POS_PENDING : 0);
 }
 
 /* 1 when the robust mode of the N or E update of this fix flagged it (ALGORITHMS.md 8, GPS
@@ -890,7 +888,7 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
         nav->step_flags &= (uint8_t)~STEP_RET;
         /* the position reference: the CS position of a fix nothing was suspect in (no jump, no
          * fault pending, not flagged, not held), carried on by the fixes' motion (pos_return) */
-        if (ran && nav->aligned && (pos & POS_BUSY) == 0 && !flagged && nav->step_hold == 0u) {
+        if (ran && nav->aligned && (pos & (POS_JUMPED | POS_PENDING)) == 0 && !flagged && nav->step_hold == 0u) {
             for (size_t i = 0; i < 2u; ++i) {
                 nav->u.step.ref[i] = nav->cs.axis[i].x[0];
             }
