@@ -363,7 +363,7 @@ mca_status_t mca_att_gravity_apply_nocheck(mca_att_t *att, const float nu[2], co
 
 /* mca_att_update_yaw after its argument checks */
 static mca_status_t yaw_update(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws,
-                               mca_update_report_t *rep)
+                               mca_update_report_t *rep, float gate)
 {
     /* d psi / d(body error angles) = [0, sin(phi), cos(phi)] / cos(theta) = [0, c32, c33] /
      * cos^2(theta) with c32 = sin(phi) cos(theta), c33 = cos(phi) cos(theta) from the last row of
@@ -378,6 +378,9 @@ static mca_status_t yaw_update(mca_att_t *att, float psi_m, float r, const float
     const float k = 1.0f / (d[1] * d[1] + d[2] * d[2]);
     const float e_row[3] = {0.0f, d[1] * k, d[2] * k};
     const float nu[1] = {mca_wrap_pi(psi_m - eul[2])};
+    if (nu[0] * nu[0] > gate * (att->p[2u * MCA_ATT_NX + 2u] + r)) { /* P[2][2] + r: S for small tilt */
+        return MCA_ERR_BAD_ARG;
+    }
     return euler_update(att, e_row, 1u, nu, r, q_d, 0, 0, ws, rep);
 }
 
@@ -393,12 +396,12 @@ mca_status_t mca_att_update_yaw(mca_att_t *att, float psi_m, float r, const floa
     if (!(r > 0.0f)) {
         return MCA_ERR_BAD_ARG;
     }
-    return yaw_update(att, psi_m, r, q_d, ws, rep);
+    return yaw_update(att, psi_m, r, q_d, ws, rep, INFINITY);
 }
 
-mca_status_t mca_att_yaw_nocheck(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws)
+mca_status_t mca_att_yaw_nocheck(mca_att_t *att, float psi_m, float r, const float q_d[4], float *ws, float gate)
 {
-    return yaw_update(att, psi_m, r, q_d, ws, NULL);
+    return yaw_update(att, psi_m, r, q_d, ws, NULL, gate);
 }
 
 mca_status_t mca_att_align_yaw(mca_att_t *att, float psi_m, float r)

@@ -13,6 +13,8 @@
 #define DEG 0.0174532925199433f
 #define G0 9.80665f
 #define YAW_STALE_US 10000000u
+#define COG_GATE_N 10u          /* the course gate's guard: refusals in a row, */
+#define COG_GATE_US 30000000u   /* and no yaw observation for this long (GPS step 6) */
 #define STEP_HOLD_US 20000000u /* the velocity step test's hold in the whole-update modes (GPS step 3) */
 
 /* compile-time check: the shared scratch fits both updates */
@@ -332,12 +334,12 @@ static void gravity_obs(mca_nav_t *nav, const mca_hist_entry_t *e, const float a
 }
 
 /* Yaw observation, or the alignment when yaw was never observed (ALGORITHMS.md 7). */
-static mca_status_t yaw_obs(mca_nav_t *nav, float psi_m, float r, const float q_d[4])
+static mca_status_t yaw_obs(mca_nav_t *nav, float psi_m, float r, const float q_d[4], float gate)
 {
     /* psi_m finite and r finite, > 0: as the yaw update, the alignment takes them unchecked */
     mca_status_t st = MCA_OK;
     if (nav->have_yaw_obs) {
-        st = mca_att_yaw_nocheck(&nav->att, psi_m, r, q_d, nav->ws);
+        st = mca_att_yaw_nocheck(&nav->att, psi_m, r, q_d, nav->ws, gate);
     } else {
         mca_att_align_yaw_nocheck(&nav->att, psi_m, r);
     }
@@ -530,15 +532,10 @@ MCA_NOINLINE static void cs_predict(mca_nav_t *nav, uint64_t t_fix, float t, con
         const float ah2 = (inc[0].dv_mps * inc[0].dv_mps + inc[1].dv_mps * inc[1].dv_mps) / (t * t);
         const float var_h = s2 + g2 * (pa[0] + pa[7]) + ah2 * pa[14];
         const float coast_h = c2 + g2 * (pa[0] + pa[7]) + ah2 * pa[14];
-        /* an axis leaving a row out with coasting set (ALGORITHMS.md 2) keeps its aid once yaw was
-         * observed: the staleness is in var_h (P_att[2][2]); without the IMU it would coast on its
-         * constant acceleration, or test its rows against its own lagging prediction */
-        const int rows_out = nav->cfg.cs_h.coast != 0u && (mca_robust_left_out(&nav->cs.axis[0].rs, MCA_CS_NZ) ||
-                                                           mca_robust_left_out(&nav->cs.axis[1].rs, MCA_CS_NZ));
-        const int yaw_ok = !yaw_unobserved(nav) || ((rows_out || hold != 0u) && nav->have_yaw_obs != 0u);
-        /* the increments of finite history entries are finite; a variance that overflowed
-         * (P_att huge) leaves the fix with the CS filter's own test rather than refusing it */
-        const int aid_h = yaw_ok && isfinite(var_h + coast_h);
+        /* N and E are aided once yaw was observed: a yaw gone stale (a car's stop) is in var_h
+         * (P_att[2][2]). The increments of finite history entries are finite; a variance that
+         * overflowed (P_att huge) leaves the fix with the CS filter's own test. */
+        const int aid_h = nav->have_yaw_obs != 0u && isfinite(var_h + coast_h);
         for (size_t i = 0; i < 3u; ++i) {
             inc[i].acc_var_m2ps4 = i < 2u ? var_h : s2;
             inc[i].coast_var_m2ps4 = i < 2u ? coast_h : c2;
@@ -960,7 +957,20 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
             const mca_hist_entry_t *ec = hist_find(nav, (int64_t)fix->t_us);
             if (ec != NULL) {
                 const float r = nav->cfg.cog_sigma0_rad * nav->cfg.cog_sigma0_rad + (s_acc / speed) * (s_acc / speed);
-                (void)yaw_obs(nav, mca_atan2f(vel[1], vel[0]), r, ec->q_nb); /* gates are not errors */
+                /* the gate in the robust modes; refused COG_GATE_N times in a row with no yaw
+                 * observation for COG_GATE_US, the course re-aligns yaw (GPS step 6) */
+                if (nav->cog_gated >= COG_GATE_N && (nav->step_flags & STEP_ARMED) == 0u &&
+                    nav->t_imu_us - nav->t_lastyaw_us > (uint64_t)COG_GATE_US) {
+                    nav->have_yaw_obs = 0u;
+                }
+                const float gate = nav->cfg.att.robust.mode != (uint8_t)MCA_ROBUST_PLAIN
+                                       ? mca_chi2_quantile(1u, MCA_CHI2_1E4)
+                                       : INFINITY;
+                if (yaw_obs(nav, mca_atan2f(vel[1], vel[0]), r, ec->q_nb, gate) == MCA_OK) { /* gates are not errors */
+                    nav->cog_gated = 0u;
+                } else if (nav->cog_gated < COG_GATE_N) {
+                    nav->cog_gated++;
+                }
             }
         }
     }
@@ -1055,7 +1065,7 @@ mca_status_t mca_nav_mag(mca_nav_t *nav, uint64_t t_us, const float mag_b[3])
     if (st != MCA_OK) {
         return MCA_OK; /* zero vector: skipped (ALGORITHMS.md 8) */
     }
-    st = yaw_obs(nav, psi, nav->cfg.mag_yaw_sigma_rad * nav->cfg.mag_yaw_sigma_rad, nav->att.q_nb);
+    st = yaw_obs(nav, psi, nav->cfg.mag_yaw_sigma_rad * nav->cfg.mag_yaw_sigma_rad, nav->att.q_nb, INFINITY);
     if (st == MCA_OK) {
         nav->t_lastmag_us = t_us;
         nav->have_mag_obs = 1u;

@@ -1,10 +1,13 @@
 /* Host C unit tests of the attitude filter's updates (mca_att.c): the plain path without a report
  * against the general update with one, the two halves of the navigation filter's no-GPS
- * observation, the tilt gates, and bad input. */
+ * observation, the tilt gates, bad input, and the yaw update's gate (the course gate). */
 #include "mca_test.h"
 #include "mcahrs/mca_att.h"
 #include "mca_att_nocheck.h"
+#include "mcahrs/mca_math.h"
+#include "mcahrs/mca_robust.h"
 
+#include <math.h>
 #include <string.h>
 
 static float g_ws[MCA_ATT_WS_LEN];
@@ -150,7 +153,7 @@ static void test_bad_input_leaves_state(void)
     CHECK(mca_att_gravity_nocheck(&att, f_inf, acc, att.q_nb, 9.80665f, 0.0f, g_ws) != MCA_OK);
     CHECK(mca_att_gravity_nocheck(&att, f, acc, q_nan, 9.80665f, 0.0f, g_ws) != MCA_OK);
     CHECK(mca_att_gravity_nocheck(&att, f, acc, att.q_nb, 9.80665f, INFINITY, g_ws) != MCA_OK);
-    CHECK(mca_att_yaw_nocheck(&att, 0.2f, 0.01f, q_nan, g_ws) != MCA_OK);
+    CHECK(mca_att_yaw_nocheck(&att, 0.2f, 0.01f, q_nan, g_ws, INFINITY) != MCA_OK);
     CHECK(memcmp(&before, &att, sizeof(att)) == 0);
 }
 
@@ -179,6 +182,34 @@ static void test_gravity_update_refuses_bad_robust_inputs(void)
     CHECK_EQ_INT(mca_att_update_gravity(&att, f, acc, att.q_nb, 9.80665f, 1e-4f, g_ws, NULL), MCA_OK);
 }
 
+/* The course gate's half (ALGORITHMS.md 7): the unchecked yaw update refuses, nothing changed,
+ * a residual with nu^2 > gate (P[2][2] + r), takes one just inside, and with gate INFINITY (the
+ * magnetometer, plain mode) takes the one it refused. */
+static void test_yaw_gate(void)
+{
+    const float r = 0.0025f;
+    const float gate = mca_chi2_quantile(1u, MCA_CHI2_1E4);
+    for (unsigned seed = 1u; seed <= 3u; ++seed) {
+        mca_att_t att;
+        make_att(&att, seed);
+        float eul[3];
+        mca_quat_to_euler_part(eul, att.q_nb, 4u);
+        const float bound = sqrtf(gate * (att.p[14] + r));
+        const mca_att_t before = att;
+        CHECK_EQ_INT(mca_att_yaw_nocheck(&att, eul[2] + 1.05f * bound, r, att.q_nb, g_ws, gate), MCA_ERR_BAD_ARG);
+        CHECK(memcmp(&before, &att, sizeof(att)) == 0);
+        CHECK_EQ_INT(mca_att_yaw_nocheck(&att, eul[2] - 1.05f * bound, r, att.q_nb, g_ws, gate), MCA_ERR_BAD_ARG);
+        CHECK(memcmp(&before, &att, sizeof(att)) == 0);
+        CHECK_EQ_INT(mca_att_yaw_nocheck(&att, eul[2] + 0.95f * bound, r, att.q_nb, g_ws, gate), MCA_OK);
+        CHECK(memcmp(&before, &att, sizeof(att)) != 0);
+        att = before;
+        CHECK_EQ_INT(mca_att_yaw_nocheck(&att, eul[2] + 1.05f * bound, r, att.q_nb, g_ws, INFINITY), MCA_OK);
+        float eul2[3];
+        mca_quat_to_euler_part(eul2, att.q_nb, 4u);
+        CHECK(eul2[2] > eul[2]); /* the update moved yaw toward the measurement */
+    }
+}
+
 int main(void)
 {
     test_plain_path_equals_general_update();
@@ -186,5 +217,6 @@ int main(void)
     test_tilt_gates();
     test_bad_input_leaves_state();
     test_gravity_update_refuses_bad_robust_inputs();
+    test_yaw_gate();
     TEST_MAIN_END();
 }

@@ -21,7 +21,7 @@ decisions are compared through what the C output exposes: the CS axes' alarms (f
 and skipped (a flagged fix and the ``tau_a`` after it skip them, GPS step 6); a velocity step test
 hold shows as both horizontal alarms and skipped observations. A case whose own tolerances differ
 (``Case.tol``) says why next to them (``TOL_COAST``, ``TOL_COAST_GUARD``, ``TOL_GUARD_BOTH``, ``TOL_IGG``,
-``TOL_AKF``, ``TOL_FTA_INTAKE``, ``TOL_REF_FAR``);
+``TOL_IGG_STOP``, ``TOL_AKF``, ``TOL_FTA_INTAKE``, ``TOL_REF_FAR``);
 a case where the C differs from the spec is an ``xfail(strict=True)`` with the diagnosis
 (``XFAIL``).
 """
@@ -155,6 +155,21 @@ TOL_GUARD_BOTH: dict[str, float] = {**TOL_COAST, "att_var_rel": 1e-2}
 # through the long position fault, whose N rows take w = 0.001-0.02 fix after fix, 2.1e-3 on the T
 # of 63.5 s (2.2730 vs 2.2683); each back to the plain cases' level a few fixes later.
 TOL_IGG: dict[str, float] = {"vel_mps": 3e-3, "acc_mps2": 2e-3, "cs_var_rel": 3e-3, "gps_T_rel": 6e-3}
+# IGG-III on the car since N and E are aided through its stops (session 26, GPS step 3): the test prior
+# then carries the IMU through the stops, and N's T is 8-15 through the braking of 68-70 s, just after
+# the long position fault's end (CAR_FAULTS, igg3_car): its rows sit on the steep part of the weight fix
+# after fix, and the C-vs-golden gap, 2e-5 m/s until 66 s, grows to 8.0e-3 m/s, 5.5e-3 m, 4.3e-3 m/s^2
+# and 5.2e-3 relative on the CS P at 69.9 s (every decision equal). The golden model against itself with
+# +-1e-6 m/s (a float32 rounding at 16 m/s) on the fix velocities: 3.6e-4 m/s, 2.4e-4 relative on the P,
+# the same few-hundredfold growth. igg3_car_pos_fault_rx: 3.3e-3 relative on N's velocity variance at
+# 45-50 s, the pull-away from a stop, back to 6e-6 by 50 s.
+TOL_IGG_STOP: dict[str, float] = {
+    **TOL_IGG,
+    "pos_m": 1e-2,
+    "vel_mps": 1.2e-2,
+    "acc_mps2": 6e-3,
+    "cs_var_rel": 8e-3,
+}
 # AKF: Q scaled by q_scale = clamp(log2(alpha + 1)), alpha = mean(window of nu^T nu - tr(R)) /
 # tr(H P H^T): a difference of two terms of the size of R, which float32 cancels; the scaled Q moves
 # P and the gains (measured on akf_car_cs 1.1e-4 relative on the CS P and 4.5e-5 m/s^2; over 90 s,
@@ -425,7 +440,9 @@ CASES: dict[str, Case] = {
     # (nu -11.7 m; N and E near the position reference, from which the CS restarts: its position moves
     # 12.3 m), on both sides (test below). Requiring this fix's jump always, the golden model parts from the
     # C there (3 / 4 roll/pitch decisions).
-    "igg3_car": Case("car_accel_brake", "ground", 70.0, profile="igg3", gnss_faults=CAR_FAULTS, tol=TOL_IGG),
+    "igg3_car": Case(
+        "car_accel_brake", "ground", 70.0, profile="igg3", gnss_faults=CAR_FAULTS, tol=TOL_IGG_STOP
+    ),
     # The velocity step test (ALGORITHMS.md 8, GPS step 3): a burst held to its end, a spike that
     # passed blamed instead of the clean fix after it, and the end of a fault of both the CS took in at
     # its guard (CAR_BURST_FAULTS, CAR_SPIKE_OFFSETS, CAR_GUARD_BOTH_FAULTS).
@@ -504,7 +521,7 @@ CASES: dict[str, Case] = {
         profile="igg3",
         receiver_model=True,
         gnss_faults=CAR_POS_FAULT,
-        tol=TOL_IGG,
+        tol=TOL_IGG_STOP,
     ),
     # The jumps against the fixes' velocities in a turn (FIXEDWING_POS_FAULT_2HZ): the golden model with the
     # predicted change as d parts from the C at 45.1 s (no restart; 15 roll/pitch decisions, 24 m).

@@ -16,7 +16,9 @@ before (``v_pre``, *pre*), the held step's guard, the end of a fault the CS took
 every mode the test runs in, when step 6 flags the fix) and the test in every mode but plain (a hold
 in the modes other than fuzzy rows: no course observation), GPS step 1's velocity and accuracy
 checks, GPS step 4's numerically failed axis update and its end of a position fault the CS took
-in with its position reference, and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
+in with its position reference, ALGORITHMS.md 7's course gate and its guard, GPS step 3's aid of N and E
+once any yaw observation was made (session 26), and step by step against the C core in
+tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
     ``init_still_s``, ``init_timeout_s``, ``cs_lag_s``, ``imu_dt_max_s``, the CS ``dt_max_s``
@@ -74,25 +76,27 @@ in with its position reference, and step by step against the C core in tests/pyt
     every due lost-GPS attempt.
 12. Yaw alignment (ALGORITHMS.md 7): the first yaw observation *made*; one that would be
     skipped (tilt above ``max_tilt_obs``, a history miss for course over ground, speed below
-    ``cog_min_speed``) does not align. Once per filter (``reset`` re-arms it).
+    ``cog_min_speed``) does not align. Once per filter (``reset`` re-arms it), but for the course
+    gate's guard (choice 26), which aligns yaw again.
 13. Robust modes (ALGORITHMS.md 5) at the navigation level: each CS axis keeps its own robust
-    memory, coasting mark and IMU-aided prior (``cs.CsAxis.mem``, ``out``, ``left``, ``prior``;
+    memory, coasting mark and IMU-aided prior (``cs.CsAxis.mem``, ``out``, ``prior``;
     ``cs.Cs3.predict_aided`` / ``update_robust``), configured by ``cs_h.robust`` / ``cs_v.robust``;
     the attitude filter one memory, ``att.robust``, for every roll/pitch observation (GPS step and
-    lost GPS); yaw observations are plain. A roll/pitch observation the robust mode rejects is
-    *made* (status OK, ``rp_T`` its T, counted in ``n_grav_made``): section 8 counts as skipped only
-    an update that fails (the gravity gate, SINGULAR, NONFINITE), and section 5 says a rejection
-    returns OK. The output flags carry each CS axis' alarm after the last fix (``FLAG_ALARM_N <<
-    axis``). The reported ``gps_T`` is each update's tested T.
+    lost GPS); yaw observations are plain (the course gate aside, choice 26). A roll/pitch observation
+    the robust mode rejects is *made* (status OK, ``rp_T`` its T, counted in ``n_grav_made``): section 8
+    counts as skipped only an update that fails (the gravity gate, SINGULAR, NONFINITE), and section 5
+    says a rejection returns OK. The output flags carry each CS axis' alarm after the last fix
+    (``FLAG_ALARM_N << axis``). The reported ``gps_T`` is each update's tested T.
 14. IMU increments (GPS step 3): ring entries as consecutive (previous end, end] intervals, the
     oldest one only as the start of the next; the interval's end past the newest entry holds the
     newest entry's acceleration for at most ``MCA_HIST_DT_US``; any saturated entry that overlaps
     the interval, or one held, turns the aid off for all axes.
-15. The IMU-aided test's exception (GPS step 3): "the N or E update before left a row out" is the
-    axis' last update rejected, or some row of it left out (``CsAxis.left``), with ``cs_h.coast`` set;
-    "while the velocity step test holds (``n > 0`` before this fix)": the count as the last fix left it
-    (a fix the test held, and no gap re-initialisation since), in every robust mode, ``coast`` set or
-    not; "once any yaw observation was made": a yaw observation or the yaw alignment since the reset.
+15. The IMU-aided N and E (GPS step 3, session 26): "once any yaw observation was made" is a yaw
+    observation or the yaw alignment taken since the reset (``t_yaw_us`` set; the first one made is
+    always the alignment, which the course gate does not refuse), however long ago: the
+    ``yaw_unobserved`` flag's 10 s (choice 9), the coasting marks and the velocity step test's hold
+    play no part. With ``yaw_source = 0`` none is ever made, so N and E are never aided; D takes the
+    increments whenever they exist (choice 14), as before.
 16. The AKF ``q_scale`` (section 5, step 3: "applied by the filter to its process noise at its
     next predict") is the memory's current value, applied at every predict until an update changes
     it: on a CS axis it multiplies the whole Q of section 2 (Singer block, q44, q55), ordinary or
@@ -243,6 +247,21 @@ in with its position reference, and step by step against the C core in tests/pyt
     and sets *ref*. A fix whose N or E update failed numerically (choice 22; steps 5-6 not done) is not
     excluded: the spec's conditions do not name it; a failed axis flags nothing (choice 23), and its
     ``p`` is the predicted one it keeps.
+26. The course gate and its guard (ALGORITHMS.md 7, yaw observations; GPS step 6): with ``att.robust.mode``
+    not plain and yaw already observed (``yaw_aligned``), a course observation with ``nu^2 > chi2_1(1e-4)
+    (P[2][2] + sigma^2)`` is refused, nothing changed: ``nu = wrap(psi_m - psi)``, ``psi`` the yaw of the
+    history entry's ``q_d`` the observation uses, ``P[2][2]`` the attitude ``P`` before it (``chi2_1`` of
+    :func:`mcahrs.golden.robust.chi2_quantile`). The tilt skip is tested first (either way nothing
+    changes and the observation counts). ``n_cog`` counts the course observations made (aligned, GPS step
+    6's conditions: the fix not flagged nor held, NE velocity, speed ``>= cog_min_speed``; and the history
+    entry found) and not taken (refused, skipped for tilt, or a failed update), in a row, saturating at 10;
+    one taken (update or yaw alignment) sets it to 0, as does ``reset``. The guard is read before the
+    observation: ``n_cog == 10`` (the ten before it not taken), the velocity step test's *armed* clear as
+    step 3 of this fix left it (never set in plain ``cs_h``, where the test does not run), and ``t_imu -
+    t_yaw > 30 s`` in integer us (``t_yaw``: the newest IMU time at the last yaw observation taken, choice 9)
+    make this observation the yaw alignment of choice 12 (tilt skip included) instead of the gated
+    update, whatever the gate would say. The counting and the guard are the same in plain mode, with no
+    gate. The magnetometer yaw has no gate and neither reads nor changes ``n_cog``.
 """
 
 from __future__ import annotations
@@ -327,6 +346,9 @@ STEP_LEVEL_HELD = 0.005  # ... chi2_2(this) while fixes are held
 STEP_HOLD_MAX_US = 20_000_000  # ... the guard of the modes other than fuzzy rows: n T < 20 s (integer us)
 POS_RETURN_LEVEL = 1e-4  # GPS step 4, the end of a position fault the CS took in: chi2_1(this)
 POS_JUMP_FORGET = 5.0  # ... the sum of the jumps decays over this many tau_p
+COG_GATE_LEVEL = 1e-4  # ALGORITHMS.md 7, the course gate: nu^2 > chi2_1(this) (P[2][2] + sigma^2) refuses
+COG_MISSED_MAX = 10  # ... n_cog, the course observations not taken in a row, stays at this; the guard's count
+COG_GUARD_US = 30_000_000  # ... the guard: no yaw observation taken for more than this (IMU time, us)
 
 G_DEFAULT = 9.80665  # gravity before home when not configured
 FIX_VEL_MAX_MPS = 1000.0  # MCA_FIX_VEL_MAX_MPS: a larger fix velocity component is RANGE (GPS step 1)
@@ -707,6 +729,7 @@ class Nav:
         self.grav_pending: tuple[HistEntry | None, tuple[float, float, float], float] | None = None
         self.t_mag_us: int | None = None  # last magnetometer observation attempt
         self.t_yaw_us: int | None = None  # IMU time of the last yaw observation made
+        self.n_cog = 0  # course observations made but not taken, in a row, up to COG_MISSED_MAX (choice 26)
         # reports and flags
         self.rp_T = math.nan
         self.gps_T = [math.nan, math.nan, math.nan]
@@ -883,23 +906,36 @@ class Nav:
         self.grav_skipped = False
         self.hist_miss = False
 
-    def _yaw(self, psi_m: float, sigma2: float, q_d: att.Quat) -> None:
-        """Yaw observation (ALGORITHMS.md 7); the first one made aligns yaw instead of updating."""
-        if not self.yaw_aligned:
+    def _yaw(
+        self, psi_m: float, sigma2: float, q_d: att.Quat, gate: bool = False, realign: bool = False
+    ) -> bool:
+        """Yaw observation (ALGORITHMS.md 7); the first one made aligns yaw instead of updating, and so
+        does one with ``realign`` (the course gate's guard, choice 26). ``gate``: the course gate
+        refuses the update when ``nu^2 > chi2_1(1e-4) (P[2][2] + sigma2)``, ``nu`` at ``q_d``. Returns
+        whether the observation was taken (updated or aligned); otherwise nothing changed."""
+        if realign or not self.yaw_aligned:
             if abs(att.euler_from_quat(q_d)[1]) > self.cfg.att.max_tilt_obs_rad:
-                return  # skipped like any yaw observation (choice 12)
+                return False  # skipped like any yaw observation (choice 12)
             self.q, self.P = att.yaw_align(self.q, self.P, psi_m, sigma2)
             self.yaw_aligned = True
         else:
+            if gate:
+                _, theta_d, psi_d = att.euler_from_quat(q_d)
+                if abs(theta_d) > self.cfg.att.max_tilt_obs_rad:
+                    return False  # skipped for tilt (as yaw_update would)
+                nu = att.wrap_pi(psi_m - psi_d)
+                if nu * nu > chi2_quantile(COG_GATE_LEVEL, 1) * (float(self.P[2, 2]) + sigma2):
+                    return False  # refused by the course gate, nothing changed
             try:
                 res = att.yaw_update(self.q, self.b, self.P, psi_m, sigma2, q_d, self.cfg.att)
             except McaError:  # choice 4
-                return
+                return False
             if not res.made:
-                return
+                return False
             self.q, self.b, self.P = res.q, res.b, res.P
         self.n_yaw_made += 1
         self.t_yaw_us = self.t_imu_us
+        return True
 
     def _lost_gps_observation(self, t_us: int, gyro: tuple[float, float, float]) -> None:
         """ALGORITHMS.md 8, IMU step 6 (gyro: this sample's raw gyro)."""
@@ -1274,9 +1310,9 @@ class Nav:
         leaves the N and E velocity rows out (Cs3.update_robust's ``vel_held``, passed by the caller)
         and raises both detectors' D to at least 2, and the return, or the first fix after a hold, not
         armed, lowers them to at most 1; in the other modes a hold changes no update and no D (its only
-        effect is the course observation the held fix does not give, GPS step 6, and the aided N and E
-        of the next fix, choice 15). In every mode that disarmed release is the fault's end
-        (``vst.ended``: the CS restarts from it when step 6 then flags the fix, choice 23)."""
+        effect is the course observation the held fix does not give, GPS step 6). In every mode that
+        disarmed release is the fault's end (``vst.ended``: the CS restarts from it when step 6 then
+        flags the fix, choice 23)."""
         st = self.vst
         st.ended = False
         cfg_h = self.cfg.cs_h
@@ -1390,7 +1426,7 @@ class Nav:
 
     def _aided_increments(self, t_fix: int, T: float) -> list[AxisInc | None]:
         """Per CS axis the IMU increments and error variances of this fix's predict, or None
-        (ALGORITHMS.md 8, GPS step 3; the exception for coasting axes included)."""
+        (ALGORITHMS.md 8, GPS step 3; N and E once any yaw observation was made, choice 15)."""
         cfg = self.cfg
         none: list[AxisInc | None] = [None, None, None]
         if not (cfg.gps_test_imu and self.aligned) or self.t_lastfix_us is None:
@@ -1403,14 +1439,9 @@ class Nav:
         att_h = self.g**2 * (self.P[0, 0] + self.P[1, 1]) + ah2 * self.P[2, 2]
         qa_v, qc_v = cfg.imu_acc_sigma_mps2**2, cfg.coast_acc_sigma_mps2**2
         qa_h, qc_h = qa_v + att_h, qc_v + att_h
-        n_ax, e_ax = self.cs.axes[0], self.cs.axes[1]
-        # yaw observed; or, coasting configured and N or E left a row out, or the velocity step test
-        # holding (n > 0 before this fix, every mode it runs in), any yaw observation made
-        coasting = bool(cfg.cs_h.coast) and (n_ax.left or e_ax.left)
-        yaw_ok = not (self.flags() & FLAG_YAW_UNOBSERVED) or (
-            (coasting or self.vst.n > 0) and self.t_yaw_us is not None
-        )
-        aid_h = yaw_ok and math.isfinite(qa_h + qc_h)
+        # N and E: once any yaw observation was made (however long ago; its growing variance is in
+        # qa), and while qa + qc is finite
+        aid_h = self.t_yaw_us is not None and math.isfinite(qa_h + qc_h)
         out: list[AxisInc | None] = [
             AxisInc(float(dp[i]), float(dv[i]), float(qa_h), float(qc_h)) if aid_h else None for i in (0, 1)
         ]
@@ -1423,7 +1454,8 @@ class Nav:
         self.prev_has_vel = has_vel
 
     def _course_observation(self, fx: _Fix) -> None:
-        """Course over ground (ALGORITHMS.md 7), observation time t_fix (choice 6)."""
+        """Course over ground (ALGORITHMS.md 7), observation time t_fix (choice 6), through the course
+        gate when the attitude filter's robust mode is not plain, and its guard (choice 26)."""
         cfg = self.cfg
         vn, ve = fx.vel[0], fx.vel[1]
         speed = math.hypot(vn, ve)
@@ -1432,9 +1464,22 @@ class Nav:
         entry = self.hist_lookup(fx.t_us)
         if entry is None:
             return
+        # made: counted in n_cog unless taken
         psi_m = math.atan2(ve, vn)
         sigma2 = cfg.cog_sigma0_rad**2 + (fx.s_acc / speed) ** 2
-        self._yaw(psi_m, sigma2, entry.q)
+        # the guard: 10 in a row not taken, no velocity fault released still in (the step test not
+        # armed), and no yaw observation taken for more than 30 s of IMU time: a yaw alignment
+        realign = (
+            self.yaw_aligned
+            and self.n_cog >= COG_MISSED_MAX
+            and not self.vst.armed
+            and self.t_yaw_us is not None
+            and self.t_imu_us is not None
+            and self.t_imu_us - self.t_yaw_us > COG_GUARD_US
+        )
+        gate = cfg.att.robust.mode != "plain"
+        taken = self._yaw(psi_m, sigma2, entry.q, gate=gate, realign=realign)
+        self.n_cog = 0 if taken else min(self.n_cog + 1, COG_MISSED_MAX)
 
     # ----------------------------------------------------------------------------------
     # Magnetometer step
