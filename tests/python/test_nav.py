@@ -924,6 +924,23 @@ def test_the_end_of_a_position_fault_the_cs_took_in_restarts_the_cs(profile: str
     assert herr["plain"][after].min() > 6.0
 
 
+def _window_off_clean(
+    bad: Recording, rec: Recording, preset: str, name: str, model: dict[str, float], t0: float, t1: float
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], np.ndarray]:
+    """The runs of profile ``name`` (with the receiver model) on ``bad`` and on the outlier-free
+    ``rec``, and the output rows of [t0, t1) s."""
+    cfg = core.nav_config(preset, **{**core.robust_profile(name, core.fix_rate_hz(rec)), **model})
+    run, clean = core.replay(bad, cfg), core.replay(rec, cfg)
+    t_s = run["t_us"] * 1e-6
+    return run, clean, (t_s >= t0) & (t_s < t1)
+
+
+def _yaw_off_deg(run: dict[str, np.ndarray], clean: dict[str, np.ndarray], w: np.ndarray) -> float:
+    """The largest yaw difference of two runs over the rows w (deg, wrapped)."""
+    d = run["euler_rad"][w, 2].astype(np.float64) - clean["euler_rad"][w, 2]
+    return float(np.degrees(np.abs((d + np.pi) % (2.0 * np.pi) - np.pi)).max())
+
+
 @pytest.mark.parametrize("profile", ["fta", "akf", "fuzzy", "fuzzy-inflate", "igg3"])
 def test_a_fix_the_velocity_step_test_held_gives_no_course_observation(profile: str) -> None:
     """ALGORITHMS.md 8, GPS steps 3 and 6: the velocity step test runs in every robust mode, and in
@@ -939,14 +956,10 @@ def test_a_fix_the_velocity_step_test_held_gives_no_course_observation(profile: 
     model = _sim_receiver_model(p)
     off = {}
     for name in (profile, "plain"):
-        cfg = core.nav_config("fixedwing", **{**core.robust_profile(name, p.gps_rate_hz), **model})
-        run, clean = core.replay(bad, cfg), core.replay(rec, cfg)
-        t_s = run["t_us"] * 1e-6
-        w = (t_s >= 150.0) & (t_s < 175.0)
-        d = run["euler_rad"][w].astype(np.float64) - clean["euler_rad"][w]
-        yaw = np.degrees(np.abs((d[:, 2] + np.pi) % (2.0 * np.pi) - np.pi)).max()
-        rp = float(np.degrees(np.sqrt(np.mean(np.max(np.abs(d[:, :2]), axis=1) ** 2))))
-        off[name] = (float(yaw), rp)
+        run, clean, w = _window_off_clean(bad, rec, "fixedwing", name, model, 150.0, 175.0)
+        d = run["euler_rad"][w, :2].astype(np.float64) - clean["euler_rad"][w, :2]
+        rp = float(np.degrees(np.sqrt(np.mean(np.max(np.abs(d), axis=1) ** 2))))
+        off[name] = (_yaw_off_deg(run, clean, w), rp)
     print(f"yaw max, roll/pitch RMS off the outlier-free run (deg): {off}")
     assert off["plain"][0] > 2.0  # the burst turns the course-over-ground yaw
     assert off[profile][0] < 0.5
@@ -1085,15 +1098,9 @@ def test_the_course_gate_keeps_a_long_velocity_fault_out_of_yaw(profile: str) ->
     model = _sim_receiver_model(p)
     off = {}
     for name in (profile, "plain"):
-        cfg = core.nav_config("ground", **{**core.robust_profile(name, p.gps_rate_hz), **model})
-        run, clean = core.replay(bad, cfg), core.replay(rec, cfg)
-        t_s = run["t_us"] * 1e-6
-        w = (t_s >= 125.0) & (t_s < 200.0)
-        d = run["euler_rad"][w, 2].astype(np.float64) - clean["euler_rad"][w, 2]
-        yaw = float(np.degrees(np.abs((d + np.pi) % (2.0 * np.pi) - np.pi)).max())
+        run, clean, w = _window_off_clean(bad, rec, "ground", name, model, 125.0, 200.0)
         d_bias = run["gyro_bias_rps"][w, 2].astype(np.float64) - clean["gyro_bias_rps"][w, 2]
-        bias = float(np.degrees(np.abs(d_bias).max()) * 3600.0)
-        off[name] = (yaw, bias)
+        off[name] = (_yaw_off_deg(run, clean, w), float(np.degrees(np.abs(d_bias).max()) * 3600.0))
     print(f"yaw max (deg), yaw gyro bias max (deg/h) off the outlier-free run: {off}")
     assert off["plain"][0] > 90.0  # the fault's course turns the yaw with no gate
     assert off[profile][0] < 10.0
