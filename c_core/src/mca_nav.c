@@ -14,7 +14,8 @@
 #define G0 9.80665f
 #define YAW_STALE_US 10000000u
 #define COG_GATE_N 10u          /* the course gate's guard: refusals in a row, */
-#define COG_GATE_US 30000000u   /* and no yaw observation for this long (GPS step 6) */
+#define COG_GATE_US 30000000u   /* and no yaw observation for this long (GPS step 6), */
+#define COG_GATE_ARMED_US 120000000u /* or this long while the step test is armed */
 #define STEP_HOLD_US 20000000u /* the velocity step test's hold in the whole-update modes (GPS step 3) */
 
 /* compile-time check: the shared scratch fits both updates */
@@ -958,9 +959,11 @@ MCA_NOINLINE static void gps_attitude(mca_nav_t *nav, const mca_gps_fix_t *fix, 
             if (ec != NULL) {
                 const float r = nav->cfg.cog_sigma0_rad * nav->cfg.cog_sigma0_rad + (s_acc / speed) * (s_acc / speed);
                 /* the gate in the robust modes; refused COG_GATE_N times in a row with no yaw
-                 * observation for COG_GATE_US, the course re-aligns yaw (GPS step 6) */
-                if (nav->cog_gated >= COG_GATE_N && (nav->step_flags & STEP_ARMED) == 0u &&
-                    nav->t_imu_us - nav->t_lastyaw_us > (uint64_t)COG_GATE_US) {
+                 * observation for COG_GATE_US and the step test not armed (or none for
+                 * COG_GATE_ARMED_US, armed or not), the course re-aligns yaw (GPS step 6) */
+                const uint64_t since = nav->t_imu_us - nav->t_lastyaw_us;
+                if (nav->cog_gated >= COG_GATE_N && since > (uint64_t)COG_GATE_US &&
+                    ((nav->step_flags & STEP_ARMED) == 0u || since > (uint64_t)COG_GATE_ARMED_US)) {
                     nav->have_yaw_obs = 0u;
                 }
                 const float gate = nav->cfg.att.robust.mode != (uint8_t)MCA_ROBUST_PLAIN

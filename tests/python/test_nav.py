@@ -1125,16 +1125,17 @@ def _split(rec: Recording, t_s: float) -> tuple[Recording, Recording]:
     return parts[0], parts[1]
 
 
-@pytest.mark.parametrize("profile", ["plain", "fta", "fuzzy"])
-def test_the_course_gate_guard_realigns_a_yaw_the_filter_lost(profile: str) -> None:
-    """ALGORITHMS.md 7, the course gate's guard: the simulated car's filter state is given 40
-    degrees of yaw error at 90 s, its yaw variance left as it was (a yaw the filter lost while
-    sure of it). The gate refuses every course observation after it, and the yaw holds its error,
-    until 30 s have passed without a yaw observation (and 10 refusals in a row); then the course
-    re-aligns it at once (measured: 39.8 degrees off the truth at 115 s, 0.0 at 121 s). Plain mode
-    has no gate: its updates take the yaw back within 10 s (measured 4.3 degrees off at 100 s)."""
-    res = scenario("car_accel_brake", seed=1, duration_s=180.0)
-    cfg = core.nav_config("ground", **core.robust_profile(profile, res.params.gps_rate_hz))
+STEP_ARMED = 2  # mca_nav.c, the velocity step test's flag bits (ALGORITHMS.md 8, GPS step 3)
+
+
+def _yaw_lost_at_90s(profile: str, duration_s: float, armed: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The simulated car (seed 1) whose filter state is given 40 degrees of yaw error at 90 s, its
+    yaw variance left as it was; with ``armed`` the velocity step test is off (``gps_test_imu`` 0,
+    so nothing clears the flag) and its *armed* flag set. Output times (s) and yaw off the truth
+    (deg)."""
+    res = scenario("car_accel_brake", seed=1, duration_s=duration_s)
+    extra = {"gps_test_imu": 0} if armed else {}
+    cfg = core.nav_config("ground", **core.robust_profile(profile, res.params.gps_rate_hz), **extra)
     nav = core.Nav(cfg)
     before, after = _split(res.recording, 90.0)
     nav.replay(before)
@@ -1149,14 +1150,27 @@ def test_the_course_gate_guard_realigns_a_yaw_the_filter_lost(profile: str) -> N
     ]
     for i in range(4):
         nav._nav.att.q_nb[i] = q_new[i]
+    if armed:
+        nav._nav.step_flags |= STEP_ARMED
     out = nav.replay(after)
     truth = res.truth
     k = np.searchsorted(truth.t_us, out["t_us"])
     err = np.degrees((out["euler_rad"][:, 2] - truth.euler_rad[k, 2] + np.pi) % (2.0 * np.pi) - np.pi)
-    t_s = out["t_us"] * 1e-6
+    return out["t_us"] * 1e-6, np.abs(err)
+
+
+@pytest.mark.parametrize("profile", ["plain", "fta", "fuzzy"])
+def test_the_course_gate_guard_realigns_a_yaw_the_filter_lost(profile: str) -> None:
+    """ALGORITHMS.md 7, the course gate's guard: the simulated car's filter state is given 40
+    degrees of yaw error at 90 s, its yaw variance left as it was (a yaw the filter lost while
+    sure of it). The gate refuses every course observation after it, and the yaw holds its error,
+    until 30 s have passed without a yaw observation (and 10 refusals in a row); then the course
+    re-aligns it at once (measured: 39.8 degrees off the truth at 115 s, 0.0 at 121 s). Plain mode
+    has no gate: its updates take the yaw back within 10 s (measured 4.3 degrees off at 100 s)."""
+    t_s, err = _yaw_lost_at_90s(profile, 180.0)
 
     def at(t: float) -> float:
-        return float(abs(err[np.searchsorted(t_s, t)]))
+        return float(err[np.searchsorted(t_s, t)])
 
     offs = [round(at(t), 1) for t in (100.0, 115.0, 125.0)]
     print(f"{profile}: yaw off the truth (deg) at 100 / 115 / 125 s: {offs}")
@@ -1165,3 +1179,21 @@ def test_the_course_gate_guard_realigns_a_yaw_the_filter_lost(profile: str) -> N
     else:
         assert at(115.0) > 35.0  # refused, nothing taken
         assert at(125.0) < 1.0  # the guard re-aligned it
+
+
+@pytest.mark.parametrize("profile", ["fta", "fuzzy"])
+def test_the_course_gate_guard_waits_120s_while_the_step_test_is_armed(profile: str) -> None:
+    """ALGORITHMS.md 7, the guard's bound: *armed* (a velocity fault the step test released may
+    still be in) keeps the guard from re-aligning at 30 s, but not past 120 s without a yaw
+    observation (a hold that released with no fault in leaves *armed* set until the next hold).
+    The yaw lost at 90 s as above, with the step test off and *armed* set: measured 40.0 degrees
+    off at 125 and 210 s, 0.0 at 215 s (the first course after 210 s)."""
+    t_s, err = _yaw_lost_at_90s(profile, 260.0, armed=True)
+
+    def at(t: float) -> float:
+        return float(err[np.searchsorted(t_s, t)])
+
+    offs = [round(at(t), 1) for t in (125.0, 205.0, 220.0)]
+    print(f"{profile}: yaw off the truth (deg) at 125 / 205 / 220 s: {offs}")
+    assert at(125.0) > 35.0 and at(205.0) > 35.0  # armed: no re-alignment at 30 s
+    assert at(220.0) < 1.0  # past 120 s the guard re-aligned it

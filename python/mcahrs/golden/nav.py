@@ -256,11 +256,13 @@ tests/python/test_nav_golden_vs_c.py)
     6's conditions: the fix not flagged nor held, NE velocity, speed ``>= cog_min_speed``; and the history
     entry found) and not taken (refused, skipped for tilt, or a failed update), in a row, saturating at 10;
     one taken (update or yaw alignment) sets it to 0, as does ``reset``. The guard is read before the
-    observation: ``n_cog == 10`` (the ten before it not taken), the velocity step test's *armed* clear as
-    step 3 of this fix left it (never set in plain ``cs_h``, where the test does not run), and ``t_imu -
-    t_yaw > 30 s`` in integer us (``t_yaw``: the newest IMU time at the last yaw observation taken, choice 9)
-    make this observation the yaw alignment of choice 12 (tilt skip included) instead of the gated
-    update, whatever the gate would say. The counting and the guard are the same in plain mode, with no
+    observation: ``n_cog == 10`` (the ten before it not taken) and either ``t_imu - t_yaw > 30 s`` with the
+    velocity step test's *armed* clear as step 3 of this fix left it (never set in plain ``cs_h``, where
+    the test does not run) or, *armed* or not, ``t_imu - t_yaw > 120 s`` (both in integer us, strictly
+    greater; ``t_yaw``: the newest IMU time at the last yaw observation taken, choice 9) make this
+    observation the yaw alignment of choice 12 (tilt skip included) instead of the gated update, whatever
+    the gate would say. The 120 s bound covers a hold that released with no fault in, which leaves
+    *armed* set until the next hold. The counting and the guard are the same in plain mode, with no
     gate. The magnetometer yaw has no gate and neither reads nor changes ``n_cog``.
 """
 
@@ -349,6 +351,7 @@ POS_JUMP_FORGET = 5.0  # ... the sum of the jumps decays over this many tau_p
 COG_GATE_LEVEL = 1e-4  # ALGORITHMS.md 7, the course gate: nu^2 > chi2_1(this) (P[2][2] + sigma^2) refuses
 COG_MISSED_MAX = 10  # ... n_cog, the course observations not taken in a row, stays at this; the guard's count
 COG_GUARD_US = 30_000_000  # ... the guard: no yaw observation taken for more than this (IMU time, us)
+COG_GUARD_ARMED_US = 120_000_000  # ... or for more than this, the step test armed or not (IMU time, us)
 
 G_DEFAULT = 9.80665  # gravity before home when not configured
 FIX_VEL_MAX_MPS = 1000.0  # MCA_FIX_VEL_MAX_MPS: a larger fix velocity component is RANGE (GPS step 1)
@@ -1467,15 +1470,18 @@ class Nav:
         # made: counted in n_cog unless taken
         psi_m = math.atan2(ve, vn)
         sigma2 = cfg.cog_sigma0_rad**2 + (fx.s_acc / speed) ** 2
-        # the guard: 10 in a row not taken, no velocity fault released still in (the step test not
-        # armed), and no yaw observation taken for more than 30 s of IMU time: a yaw alignment
+        # the guard: 10 in a row not taken, and no yaw observation taken for more than 30 s of IMU
+        # time with no velocity fault released still in (the step test not armed), or, armed or not,
+        # for more than 120 s: a yaw alignment
         realign = (
             self.yaw_aligned
             and self.n_cog >= COG_MISSED_MAX
-            and not self.vst.armed
             and self.t_yaw_us is not None
             and self.t_imu_us is not None
-            and self.t_imu_us - self.t_yaw_us > COG_GUARD_US
+            and (
+                (not self.vst.armed and self.t_imu_us - self.t_yaw_us > COG_GUARD_US)
+                or self.t_imu_us - self.t_yaw_us > COG_GUARD_ARMED_US
+            )
         )
         gate = cfg.att.robust.mode != "plain"
         taken = self._yaw(psi_m, sigma2, entry.q, gate=gate, realign=realign)
