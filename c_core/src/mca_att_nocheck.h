@@ -32,7 +32,7 @@ mca_status_t mca_att_gravity_apply_nocheck(mca_att_t *att, const float nu[2], co
 /* mca_att_update_yaw with every argument non-NULL and finite, r > 0, no report (a non-finite
  * q_d is still refused through the update's check; a non-finite psi_m would be a zero residual,
  * mca_wrap_pi, so the caller keeps it out), and an innovation gate: MCA_ERR_BAD_ARG, nothing
- * changed, when nu^2 > gate (P[2][2] + r) (gate INFINITY: none; ALGORITHMS.md 8, GPS step 6) */
+ * changed, when nu^2 > gate (P[2][2] + r) (gate INFINITY: none; ALGORITHMS.md 7, the course gate) */
 mca_status_t mca_att_yaw_nocheck(mca_att_t *att, float psi_m, float r_rad2, const float q_d[4], float *ws,
                                  float gate);
 

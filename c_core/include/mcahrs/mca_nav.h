@@ -149,7 +149,7 @@ typedef struct {
     uint8_t init_still;      /**< every sample of the window was still */
     uint8_t step_hold;       /**< velocity step test: fixes the anchor has been held for (0: the last fix is it) */
     uint8_t step_flags;      /**< velocity step test: anchor, armed, tested, pre (mca_nav.c) */
-    uint8_t cog_gated;       /**< course observations the yaw gate refused in a row */
+    uint8_t cog_gated;       /**< course observations not taken in a row, up to 10 (ALGORITHMS.md 7) */
     float g_mps2;
     float acc_comp_n[3];     /**< compensation acceleration of the last fix */
     float vel_prev[3];       /**< velocity of the last fix (at t_lastfix_us; differencing) */
