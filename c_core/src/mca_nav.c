@@ -351,9 +351,9 @@ static mca_status_t yaw_obs(mca_nav_t *nav, float psi_m, float r, const float q_
     return st;
 }
 
-/* No yaw observation in the last 10 s of IMU time (always so with no yaw source). Not inlined
- * into its two callers (8 B). */
-MCA_NOINLINE static int yaw_unobserved(const mca_nav_t *nav)
+/* No yaw observation in the last 10 s of IMU time (always so with no yaw source): the output
+ * flag, its one caller since N and E are aided once yaw was observed (GPS step 3). */
+static int yaw_unobserved(const mca_nav_t *nav)
 {
     return nav->cfg.yaw_source == MCA_YAW_NONE || !nav->have_yaw_obs ||
            nav->t_imu_us - nav->t_lastyaw_us > (uint64_t)YAW_STALE_US;
