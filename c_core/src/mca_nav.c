@@ -422,6 +422,13 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
     return 1;
 }
 
+/* GPS step 4, the receiver model: the part of a position std that is white, R's; the CS
+ * GPS-error state carries the rest. white 0: all of it. */
+MCA_NOINLINE static float white_part(float acc, float white)
+{
+    return (white > 0.0f && white < acc) ? white : acc;
+}
+
 /* The fuzzy-rows profile (ALGORITHMS.md 5: fuzzy, fuzzy_reject 2): the step test's hold leaves its
  * velocity rows out, and the position return rule does not run for it (GPS steps 3, 4).
  * fix_flagged spells it out with IGG-III: through this helper there it cost 8 B of flash and 8
@@ -455,8 +462,9 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
                                    float coast_h, float t, uint8_t hold, uint64_t t_us)
 {
     const float *v = fv->vel_ned_mps;
-    float pred[2], s[2], e2 = 0.0f, r2 = 0.0f, dot = 0.0f, n0 = 0.0f, ds = 0.0f, pp = 0.0f;
+    float pred[2], s[2], e2 = 0.0f, r2 = 0.0f, dot = 0.0f, n0 = 0.0f, ds = 0.0f, pp = 0.0f, pv = 0.0f;
     for (size_t i = 0; i < 2u; ++i) {
+        pv += nav->u.step.pv[i] * nav->u.step.s0[i];
         const float ep = v[i] - nav->u.step.pre[i] - inc[i].dv_mps;
         pp += ep * ep;
         pred[i] = nav->u.step.v[i] + inc[i].dv_mps;
@@ -475,16 +483,23 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
     /* No fix held: a step from an anchor that the anchor before it (carried on) agrees with is
      * the anchor's, a spike that passed its own test, not this fix's. Holding: a fix nearer the
      * held step than the anchor (s . s0 >= |s0|^2 / 2) still carries the fault, however the
-     * anchor's variance has grown. */
+     * anchor's variance has grown; in fuzzy rows so does one whose held fixes' velocities, less
+     * their positions' change, still say the step (nearer it than 0, beyond the receiver's
+     * position error over the hold), however far the anchor has drifted. */
+    const int rows = fuzzy_rows(&nav->cs.axis[0].cfg.robust);
+    const float w = white_part(fv->h_acc_m, nav->cfg.gps_pos_white_m);
+    const float sp = nav->cs.axis[0].cfg.sigma_p_m;
+    const float var_p = 2.0f * (w * w + sp * sp * nav->u.step.pv[2] / nav->cs.axis[0].cfg.tau_p_s);
+    const int by_pos = rows && hold != 0u && 2.0f * pv >= n0 * nav->u.step.pv[2] && pv * pv > g * n0 * var_p;
     const int fail = e2 > g * c ? hold != 0u || (nav->step_flags & STEP_PRE) == 0u || pp > g * c
-                                : hold != 0u && 2.0f * ds >= n0;
+                                : hold != 0u && (2.0f * ds >= n0 || by_pos);
     /* the return: the reverse of the step that started the hold, within it the raw step, after a
-     * release with the fault still in the anchor's */
+     * release with the fault still in the anchor's; its size against the held step unless the
+     * positions say the step (s0 is one fix against the anchor) */
     const float q = hold != 0u ? r2 : e2;
-    const int ret = fail && dot < 0.0f && dot * dot >= 0.5f * q * n0 && fabsf(q - 1.25f * n0) <= n0 &&
+    const int ret = fail && dot < 0.0f && dot * dot >= 0.5f * q * n0 && (by_pos || fabsf(q - 1.25f * n0) <= n0) &&
                     (hold != 0u ? r2 > g4 * c_raw : (nav->step_flags & STEP_ARMED) != 0u);
     nav->step_flags |= STEP_TESTED;
-    const int rows = fuzzy_rows(&nav->cs.axis[0].cfg.robust);
     const int guard = rows ? hold < nav->cs.axis[0].cfg.robust.reject_reset_n : hold * t_us < STEP_HOLD_US;
     if (fail && !ret && guard) {
         if (hold == 0u) {
@@ -718,13 +733,6 @@ mca_status_t mca_gps_fix_read(const mca_gps_fix_t *fix, float pos_sigma_m, float
                : MCA_ERR_BAD_ARG;
 }
 
-/* GPS step 4, the receiver model: the part of a position std that is white, R's; the CS
- * GPS-error state carries the rest. white 0: all of it. */
-MCA_NOINLINE static float white_part(float acc, float white)
-{
-    return (white > 0.0f && white < acc) ? white : acc;
-}
-
 /* The end of a position fault the CS took in (ALGORITHMS.md 8, GPS step 4), axis i (N, E),
  * after the predict and before the update; d the position change the fixes' velocities say (or,
  * without them or on a fix the step test holds after its first, the CS's prediction). A jump of the
@@ -829,6 +837,18 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
      * mca_cs3_update's checks is left to make. */
     const float x0[2] = {nav->cs.axis[0].x[0], nav->cs.axis[1].x[0]};
     cs_predict(nav, fix->t_us, t, fv);
+    const uint8_t held = nav->step_hold;
+    if (held != 0u && fuzzy_rows(&nav->cs.axis[0].cfg.robust)) {
+        /* the step test's position check (GPS step 3): a held fix after the first adds its
+         * velocity less its position change since the last, held too; pos_prev, the position
+         * return rule's memory, is the last held fix's here */
+        for (size_t i = 0; i < 3u; ++i) {
+            const float d =
+                i < 2u ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i]) - (ned[i] - nav->pos_prev[i]) : t;
+            nav->u.step.pv[i] = held > 1u ? nav->u.step.pv[i] + d : 0.0f;
+        }
+        mca_copyf(nav->pos_prev, ned, 2u);
+    }
     /* the end of a position fault the CS took in (GPS step 4): the modes that take a long fault
      * in (not plain, which handles none, nor fuzzy rows, which holds the position row out); the
      * fixes' motion from their velocities (the trapezoid): a fault the CS takes in through its

@@ -210,6 +210,42 @@ CAR_SPIKE_OFFSETS = ((40.0, 0, -0.5, 0.0), (40.0, 1, 0.2, 0.0), (55.0, 0, 0.3, -
 # CS leaves its velocity out of: the CS restarts from it (no alarm after it, and no roll/pitch attempt
 # at it). Without the restart the CS alarmed on every clean fix to the end of the recording.
 CAR_GUARD_BOTH_FAULTS = ((10.1, 30.1, 38.0, 4.7, 120.0),)
+# The held fixes' positions (GPS step 3, fuzzy rows, session 27: while holding, a fix also fails when the held
+# fixes' velocities less their positions' change, summed as e over t_e, still say the held step). An 18 s, 1.1
+# m/s velocity-only burst (east) over 20-38 s of the multirotor's maneuvers (seed 3), with the receiver model.
+# The held step s0 is 0.93 m/s (0.21, 0.91); the anchor, carried on by the IMU increments, drifts toward the
+# burst and past it (|s|^2 under k C from 23.6 s; s . s0 / |s0|^2 from 1.2 at the onset to 0.49 at 26.8 s and
+# -0.62 at 37.6 s), while the positions' mean e . s0 / (t_e |s0|^2) stays 0.96-1.22: from 26.8 s they alone
+# keep 47 of the burst's fixes failing, the hold lasts the burst (20.0-37.8 s), and its first clean fix (38.0
+# s) is the return, on both sides. That fix steps back 1.56 |s0| (q = 2.44 |s0|^2), outside the return's size
+# window, which is not asked while the positions say the held step. The golden model without the rule released
+# the hold at 26.8 s, the CS took the burst in, and its end was held as a step of its own to the guard
+# (38.0-57.8 s): it parts from the C at 26.9 s (146 / 146 roll/pitch decisions, 6 flag events); with the size
+# window asked there it holds the end 2 s more (to 39.8 s) and parts from the C at 38.1 s (10 / 10, 3).
+MULTIROTOR_DRIFT_BURST = ((20.0, 38.0, 0.0, 1.1, 90.0),)
+# The return's size window and the positions (GPS step 3, fuzzy rows: 0.25 |s0|^2 <= q <= 2.25 |s0|^2 is not
+# asked while the positions say the held step): a 15 s velocity-only burst in the car's cruise (seed 1) whose
+# first fix (15.0 s) is half of the rest, 1.0 then 2.0 m/s at azimuth 306.87 deg ((0.6, -0.8) m/s, then twice
+# that; tests/python/test_nav.py's burst), with the receiver model. The held step s0 is 1.26 m/s (the first
+# fix against the anchor), the positions measure 1.59 |s0| (2.0 m/s) over the hold, and the first clean fix
+# (30.0 s) steps back 1.54 |s0| (q = 2.36 |s0|^2): the return, the alarm on the burst's fixes (15.0-29.8 s)
+# and none after, on both sides. The golden model with the window asked holds that end as a fix the positions
+# still say failing for 25 clean fixes (to 34.8 s) and parts from the C at 30.1 s (25 / 25 roll/pitch
+# decisions, 4 flag events). Without the positions' rule it releases at 30.0 s too (the end passes the anchor
+# test there).
+CAR_HALF_ONSET_BURST = ((15.0, 15.2, 0.0, 1.0, 306.87), (15.2, 30.0, 0.0, 2.0, 306.87))
+# The sum's start (GPS step 3, fuzzy rows: the hold's first fix sets e = 0, t_e = 0 and adds nothing, each
+# held fix after it adds T (v_fix + v_last) / 2 - (p_fix - p_last)): an 18 s, 1.1 m/s velocity-only burst
+# (azimuth 120 deg) over 20-38 s of the fixed-wing's turns (seed 1), with the receiver model. The held step s0
+# is 1.14 m/s; the anchor test keeps the hold to 23.4 s (s . s0 / |s0|^2 0.47, |s|^2 0.56 k C at 23.6 s), and
+# the positions, summed from the hold's second fix, do not say the held step yet: at 23.6 s e . s0 / (t_e
+# |s0|^2) is 0.75 and (e . s0)^2 0.90 k |s0|^2 V_e, so the hold releases there, on both sides (the CS then
+# takes the burst in, and neither side alarms again). The golden model with the hold's first fix's term summed
+# too (T (v_1 + v_0) / 2 - (p_1 - p_0), v_0 and p_0 the fault-free fix before the hold: half the held step
+# over that interval; the reading before the spec's revision) has the positions say the held step from 23.0 s
+# (0.96 and 1.57 at 23.6 s), holds the burst to its end and parts from the C at 23.7 s (70 / 71 roll/pitch
+# decisions, 5 flag events).
+FIXEDWING_FIRST_HELD_BURST = ((20.0, 38.0, 0.0, 1.1, 120.0),)
 # The end of a position fault the CS took in (GPS step 4): a 100 s, 30 m horizontal position fault (N 18,
 # E -24 m, velocity clean; bench_outliers.py's long fault) over 20-120 s of the car's cruise, braking,
 # stop and pull-away, with the receiver model. FTA and IGG-III take it in within a few fixes (the GPS-error
@@ -475,6 +511,39 @@ CASES: dict[str, Case] = {
         receiver_model=True,
         gnss_faults=CAR_GUARD_BOTH_FAULTS,
         tol=TOL_GUARD_BOTH,
+    ),
+    # The held fixes' positions keep a burst held that the anchor drifted toward, and the return's size window
+    # is not asked while they say the held step (MULTIROTOR_DRIFT_BURST, CAR_HALF_ONSET_BURST); within TOL
+    # (measured 4.0e-5 m/s, 3.6e-4 m, 4.9e-5 m/s^2 on the multirotor; 2.1e-5 m/s, 1.2e-4 m on the car).
+    "rows_multirotor_drift_burst_rx": Case(
+        "multirotor_aggressive",
+        "multirotor",
+        60.0,
+        seed=3,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=MULTIROTOR_DRIFT_BURST,
+        tol=TOL_COAST,
+    ),
+    "rows_car_half_onset_burst_rx": Case(
+        "car_accel_brake",
+        "ground",
+        45.0,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_HALF_ONSET_BURST,
+        tol=TOL_COAST,
+    ),
+    # The sum's start (FIXEDWING_FIRST_HELD_BURST): the hold releases 14 s into the burst, on both sides; the
+    # coast to it within TOL_COAST (measured 3.5e-4 m/s, 5.3e-4 m/s^2).
+    "rows_fixedwing_first_held_rx": Case(
+        "fixedwing_turns",
+        "fixedwing",
+        60.0,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=FIXEDWING_FIRST_HELD_BURST,
+        tol=TOL_COAST,
     ),
     # The velocity step test in a whole-update mode (ALGORITHMS.md 8, GPS step 3, and step 6): FTA on the
     # burst of rows_car_burst18_rx (same seed; course over ground the car's yaw source). The test holds
@@ -998,6 +1067,40 @@ def test_guard_burst_of_both_ends_with_a_cs_restart_on_both_sides() -> None:
         t = g["t_us"] * 1e-6
         assert np.all(on[(t > t0 + 0.5) & (t < t_last)])
         assert not np.any(on[t > t_last + 0.25])
+
+
+# The fixes (times in [t0, t1), s) after which N and E alarm in the cases of the test below, and no others.
+ALARMED_FIXES: dict[str, tuple[float, float]] = {
+    "rows_multirotor_drift_burst_rx": (20.0, 38.0),  # the burst's fixes
+    "rows_car_half_onset_burst_rx": (15.0, 30.0),  # the burst's fixes
+    "rows_fixedwing_first_held_rx": (20.0, 23.8),  # released 14 s before the burst's end
+}
+
+
+@pytest.mark.parametrize("name", list(ALARMED_FIXES))
+def test_burst_held_by_the_positions_alarms_on_the_same_fixes_on_both_sides(name: str) -> None:
+    """The MULTIROTOR_DRIFT_BURST, CAR_HALF_ONSET_BURST and FIXEDWING_FIRST_HELD_BURST cases reach the rules
+    they are for (ALGORITHMS.md 8, GPS step 3, fuzzy rows: the held fixes' positions, the return's size window
+    not asked while they say the held step, and their sum from the hold's second fix): on both sides N or E
+    alarms after every fix of ``ALARMED_FIXES`` and neither after any other fix of the recording. The
+    multirotor's hold lasts the burst although the anchor drifted past it, and releases at its first clean
+    fix, 1.56 times the held step back (without the positions' rule it released 11 s before the burst's end,
+    and its end was held 20 s); the car's releases at its first clean fix, 1.54 times the held step back
+    (with the size window asked there, 5 s later); the fixed-wing's releases 14 s into the burst (with the
+    hold's first fix's term summed, at its end)."""
+    case = CASES[name]
+    rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording
+    t0, t1 = ALARMED_FIXES[name]
+    t_fix = rec.gnss["t_us"].astype(np.int64) * 1e-6
+    c, g = _runs(name)
+    row = np.searchsorted(g["t_us"], rec.gnss["t_rx_us"].astype(np.int64), side="right")  # after each fix
+    ok = row < len(g["t_us"])
+    alarmed = ((t_fix >= t0 - 1e-3) & (t_fix < t1 - 1e-3))[ok]
+    alarm = core.FLAG_BITS["alarm_n"] | core.FLAG_BITS["alarm_e"]
+    for flags in (c["flags"], g["flags"]):
+        at_fix = flags[row[ok]].astype(np.int64) & alarm
+        assert np.all(at_fix[alarmed] != 0)
+        assert not np.any(at_fix[~alarmed])
 
 
 # Restarts other than home and the fault's end (fix times, s) and the least move of the CS horizontal

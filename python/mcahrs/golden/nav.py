@@ -17,8 +17,8 @@ every mode the test runs in, when step 6 flags the fix) and the test in every mo
 in the modes other than fuzzy rows: no course observation), GPS step 1's velocity and accuracy
 checks, GPS step 4's numerically failed axis update and its end of a position fault the CS took
 in with its position reference, ALGORITHMS.md 7's course gate and its guard, GPS step 3's aid of N and E
-once any yaw observation was made (session 26), and step by step against the C core in
-tests/python/test_nav_golden_vs_c.py)
+once any yaw observation was made (session 26), the step test's held fixes' positions in fuzzy rows
+(session 27), and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
     ``init_still_s``, ``init_timeout_s``, ``cs_lag_s``, ``imu_dt_max_s``, the CS ``dt_max_s``
@@ -264,6 +264,40 @@ tests/python/test_nav_golden_vs_c.py)
     the gate would say. The 120 s bound covers a hold that released with no fault in, which leaves
     *armed* set until the next hold. The counting and the guard are the same in plain mode, with no
     gate. The magnetometer yaw has no gate and neither reads nor changes ``n_cog``.
+27. The held fixes' positions (GPS step 3, velocity step test, session 27), fuzzy rows only (``cs_h``'s
+    ``robust.mode`` fuzzy with ``fuzzy_reject`` 2). The test is read only while holding (``n > 0`` before
+    this fix, as the other holding rules): with ``e`` (N, E) and ``t_e`` as the held fixes before this
+    one left them, the fix also fails when ``2 e . s0 >= t_e |s0|^2`` and ``(e . s0)^2 > k |s0|^2 V_e``,
+    ``k`` the step's own ``k`` of a fix while holding, ``chi2_2(0.005)`` (the 2-DOF quantile, though
+    ``e . s0`` is one number: the spec's ``k``), ``V_e = 2 w^2 + 2 sigma_p^2 t_e / tau_p``, ``w`` the
+    white part of this fix's ``h_acc`` (``min(h_acc, gps_pos_white_m)`` with the receiver model, the whole
+    ``h_acc`` without it: the N/E position variance of this fix's step 4), ``sigma_p``, ``tau_p``
+    ``cs_h``'s ``sigma_p_m``, ``tau_p_s``. With ``e = 0``, ``t_e = 0`` (nothing summed) it never fails
+    (``V_e > 0``): the hold's second fix sees nothing summed, so the positions speak from its third fix
+    (one interval summed) on. Such a fix is the return when, on ``r``, ``u . s0 < 0``, ``(u . s0)^2 >=
+    0.5 q |s0|^2`` and ``|r|^2 > chi2_2(1e-4) C_r`` hold, the size window ``0.25 |s0|^2 <= q <= 2.25
+    |s0|^2`` not asked ("unless the positions say the held step": both conditions above); a fix that
+    fails only by the other rules keeps the window. The sum, "after the test" (step 3, before the
+    predict and the CS update of step 4; a fix the gap re-initialises skips the test and is not held),
+    on a fix the test held (``h = n > 0`` after it; a held fix is aligned, the test runs aligned only):
+    the hold's first (``h = 1``) sets ``e = 0``, ``t_e = 0`` and adds nothing; each one after it (``h >
+    1``) adds ``T (v_fix + v_last) / 2 - (p_fix - p_last)`` to ``e`` and ``T`` (this fix's interval, that
+    of step 3's predict) to ``t_e``; every held fix, and no other, then sets ``p_last`` to its N and E
+    position: "the fix in the local frame" is step 3's ``ned`` (section 6 from home; the spec's "step 2"
+    read as where the frame's origin is set). A fix not held (the return, the first fix after a hold, a
+    fix the test does not run on) changes none of ``e``, ``t_e``, ``p_last``; ``e`` and ``t_e`` are not
+    cleared by a CS start or by the end of a hold either (only read while holding, and every hold's first
+    fix restarts them). ``p_last`` is step 4's memory of the last position, ``z_prev`` (``_PosJumps``),
+    which step 4's rule neither reads nor writes in fuzzy rows. Every CS start clears it
+    (``_cs_restart``), and that cannot matter: ``p_last`` is read only on a fix held after another held
+    fix (``h > 1``, so the fix before, ``h - 1``, was held and wrote it in its step 3), and no CS start
+    comes between: fix ``h - 1``'s own restarts after step 4 are step 3's end of a fault (only on a fix
+    the test judged the end, never a held one) and step 4's return (which does not run in fuzzy rows),
+    fix ``h``'s gap re-initialisation skips the test (fix ``h`` then not held), and home is the first
+    fix. So ``p_last`` is never NaN where read, and the model asks nothing of it. ``v_last`` is step 7's
+    remembered velocity, the held fix ``h - 1``'s (step 7 is done on every fix past step 1, a numerical
+    failure's too), which has N and E velocity (the test ran on it). A fix whose CS axis update fails
+    numerically keeps what step 3 wrote (choice 22); a step 1 error changes nothing.
 """
 
 from __future__ import annotations
@@ -585,6 +619,10 @@ class _StepTest:
     # the anchor before v_a, carried on to the last fix the test ran on and did not hold
     v_pre: np.ndarray = field(default_factory=lambda: np.zeros(2))
     pre: bool = False  # the test ran on the previous fix (v_pre is its)
+    # fuzzy rows (choice 27): the held fixes' velocity less their position change, summed (N, E), and
+    # the time it spans; restarted at the hold's first fix
+    e: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    t_e: float = 0.0
     # the test judged this fix the fault's end: the return, or the first fix after a hold, disarmed
     ended: bool = False
 
@@ -1066,6 +1104,8 @@ class Nav:
             # Step 3's velocity step test (it may hold the fix; in fuzzy rows move the N, E detectors'
             # D), then the predict, plain or coasting, with the IMU-aided test priors.
             ran, held = self._velocity_step_test(fx, T, incs, has_ne)
+            # after the test, in fuzzy rows: a held fix's position and velocity summed, p_last (choice 27)
+            self._held_positions(fx, T, ned, held)
             self.cs.predict_aided(T, incs)
             # GPS step 4's jumps: against the predicted change on a fix the step test holds after the
             # hold's first (n > 1 now), whose velocity carries the fault
@@ -1315,7 +1355,9 @@ class Nav:
         armed, lowers them to at most 1; in the other modes a hold changes no update and no D (its only
         effect is the course observation the held fix does not give, GPS step 6). In every mode that
         disarmed release is the fault's end (``vst.ended``: the CS restarts from it when step 6 then
-        flags the fix, choice 23)."""
+        flags the fix, choice 23). In fuzzy rows a fix also fails while holding when the held fixes'
+        positions say the held step (``vst.e``, ``vst.t_e``; ``w`` the white part of this fix's ``h_acc``,
+        GPS step 4's receiver model), and such a fix's return needs no size window (choice 27)."""
         st = self.vst
         st.ended = False
         cfg_h = self.cfg.cs_h
@@ -1341,14 +1383,25 @@ class Nav:
         ss, rr = float(s @ s), float(r @ r)
         holding = st.n > 0
         s0n = float(st.s0 @ st.s0)
-        if holding:  # still failing, or nearer the held step than the anchor
-            fails = ss > k * C or 2.0 * float(s @ st.s0) >= s0n
+        # fuzzy rows, while holding: the held fixes' positions say the held step (the mean velocity by
+        # which they disagree, e / t_e, nearer s0 than 0, and e . s0 beyond the receiver's position
+        # error over the hold: its white part at both ends, its Gauss-Markov part's wander), choice 27
+        positions = False
+        if rows_mode and holding:
+            es0 = float(st.e @ st.s0)
+            w2 = _white(fx.h_acc, self.cfg.gps_pos_white_m) ** 2  # this fix's N/E position variance
+            V_e = 2.0 * w2 + 2.0 * cfg_h.sigma_p_m**2 * st.t_e / cfg_h.tau_p_s
+            positions = 2.0 * es0 >= st.t_e * s0n and es0 * es0 > k * s0n * V_e
+        if holding:  # still failing, nearer the held step than the anchor, or the positions say it
+            fails = ss > k * C or 2.0 * float(s @ st.s0) >= s0n or positions
         else:  # a step, unless it agrees with the anchor before (the anchor was the spike)
             d_pre = v_fix - (st.v_pre + dv)
             fails = ss > k * C and not (st.pre and float(d_pre @ d_pre) <= k * C)
         u, q = (r, rr) if holding else (s, ss)
         us0 = float(u @ st.s0)
-        reverse = us0 < 0.0 and us0 * us0 >= 0.5 * q * s0n and 0.25 * s0n <= q <= 2.25 * s0n
+        # the size window is not asked when the positions say the held step (s0 may be off the fault)
+        sized = positions or 0.25 * s0n <= q <= 2.25 * s0n
+        reverse = us0 < 0.0 and us0 * us0 >= 0.5 * q * s0n and sized
         stepped_back = rr > chi2_quantile(STEP_LEVEL_FAIL, 2) * C_r
         is_return = fails and reverse and (stepped_back if holding else st.armed)
         # The guard (with n before this fix): fuzzy rows' whole-update guard, reject_reset_n fixes; the
@@ -1378,6 +1431,27 @@ class Nav:
         st.n = 0
         st.v_pre = v_p  # every fix not held
         return True, False
+
+    def _held_positions(self, fx: _Fix, T: float, ned: np.ndarray, held: bool) -> None:
+        """After the velocity step test, in fuzzy rows (choice 27), a fix the test held (``h = n > 0``
+        after it): the hold's first (``h = 1``) sets ``vst.e = 0``, ``vst.t_e = 0`` and adds nothing; each
+        one after it (``h > 1``) adds ``T (v_fix + v_last) / 2 - (p_fix - p_last)`` to ``vst.e`` and ``T``
+        to ``vst.t_e``; every one sets ``p_last`` to its N and E position (step 3's ``ned``). A fix not
+        held changes none of them. ``p_last`` is GPS step 4's memory of the last position,
+        ``jumps.z_prev`` (which step 4's rule neither reads nor writes in fuzzy rows); ``v_last`` the
+        last fix's velocity (step 7's ``prev_vel``). On ``h > 1`` both are the held fix before's: it had
+        N and E velocity (a held fix has), and no CS start came between (see choice 27)."""
+        if not (held and self._step_test_rows()):
+            return
+        st = self.vst
+        p_fix = np.array([float(ned[0]), float(ned[1])])
+        if st.n == 1:
+            st.e, st.t_e = np.zeros(2), 0.0
+        else:
+            v_fix, v_last = np.array(fx.vel[:2]), np.array(self.prev_vel[:2])
+            st.e = st.e + (T * (v_fix + v_last) / 2.0 - (p_fix - self.jumps.z_prev))
+            st.t_e += T
+        self.jumps.z_prev = p_fix
 
     def _step_test_rows(self) -> bool:
         """The horizontal CS configuration is fuzzy rows (``fuzzy`` with ``fuzzy_reject`` 2): the velocity
