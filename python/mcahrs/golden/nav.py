@@ -283,12 +283,11 @@ once any yaw observation was made (session 26), the step test's held fixes' posi
     the hold's first (``h = 1``) sets ``e = 0``, ``t_e = 0`` and adds nothing; each one after it (``h >
     1``) adds ``T (v_fix + v_last) / 2 - (p_fix - p_last)`` to ``e`` and ``T`` (this fix's interval, that
     of step 3's predict) to ``t_e``; every held fix, and no other, then sets ``p_last`` to its N and E
-    position: "the fix in the local frame" is step 3's ``ned`` (section 6 from home; the spec's "step 2"
-    read as where the frame's origin is set). A fix not held (the return, the first fix after a hold, a
-    fix the test does not run on) changes none of ``e``, ``t_e``, ``p_last``; ``e`` and ``t_e`` are not
-    cleared by a CS start or by the end of a hold either (only read while holding, and every hold's first
-    fix restarts them). ``p_last`` is step 4's memory of the last position, ``z_prev`` (``_PosJumps``),
-    which step 4's rule neither reads nor writes in fuzzy rows. Every CS start clears it
+    position, step 3's ``ned`` (section 6, from home). A fix not held (the return, the first fix after a
+    hold, a fix the test does not run on) changes none of ``e``, ``t_e``, ``p_last``; ``e`` and ``t_e``
+    are not cleared by a CS start or by the end of a hold either (only read while holding, and every
+    hold's first fix restarts them). ``p_last`` is step 4's memory of the last position, ``z_prev``
+    (``_PosJumps``), which step 4's rule neither reads nor writes in fuzzy rows. Every CS start clears it
     (``_cs_restart``), and that cannot matter: ``p_last`` is read only on a fix held after another held
     fix (``h > 1``, so the fix before, ``h - 1``, was held and wrote it in its step 3), and no CS start
     comes between: fix ``h - 1``'s own restarts after step 4 are step 3's end of a fault (only on a fix
