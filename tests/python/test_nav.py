@@ -872,19 +872,12 @@ def test_velocity_step_test_releases_a_burst_at_a_return_larger_than_its_first_s
     say the burst over all of the hold, kept it held to the guard: 25 clean fixes alarmed after it
     (measured with the window kept in the C). Not sized against the held step while the positions
     say it, the end is the return and the alarm releases at it."""
-    import dataclasses
-
     res = scenario("car_accel_brake", seed=4, duration_s=260.0)
     rec = res.recording
-    g = rec.gnss.copy()
-    t_s = g["t_us"] * 1e-6
-    v = g["vel_ned_mps"].copy()
-    first = (t_s >= 150.0) & (t_s < 150.2)
-    rest = (t_s >= 150.2) & (t_s < 165.0)
-    v[first, :2] += (0.6, -0.8)
-    v[rest, :2] += (1.2, -1.6)
-    g["vel_ned_mps"] = v
-    bad = dataclasses.replace(rec, gnss=g)
+    half, burst = _with_gnss_fault(rec, 150.0, 165.0, (0.0, 0.0), (0.6, -0.8))
+    bad, rest = _with_gnss_fault(half, 150.2, 165.0, (0.0, 0.0), (0.6, -0.8))
+    first = burst & ~rest
+    t_s = rec.gnss["t_us"] * 1e-6
     after = (t_s >= 165.0) & (t_s < 180.0)
     profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
     cfg = core.nav_config("ground", **{**profile, **_sim_receiver_model(res.params)})
