@@ -663,30 +663,33 @@ mca_status_t mca_cs3_update(mca_cs3_t *cs, const float pos[3], const float vel[3
             }
         }
     }
-    return mca_cs3_update_nocheck(cs, pos, vel, r_pos, r_vel, mask, ws, rep);
+    if (rep == NULL) {
+        return mca_cs3_update_nocheck(cs, pos, vel, r_pos, r_vel, mask, ws);
+    }
+    /* Axes are independent; C = H P H^T + R is positive definite whenever P is PSD and
+     * R > 0 (checked above), so an update can fail now only by float overflow, which
+     * leaves that axis unchanged (mca_kf_update is atomic). With reports every axis updates on
+     * its own; without them, mca_cs3_update_nocheck (whose callers never ask for one, so that a
+     * link-time optimised image holds no report code on the navigation filter's path). */
+    mca_status_t result = MCA_OK;
+    pair_rows(cs, pos, vel, r_pos, r_vel, mask, ws);
+    for (size_t i = 0; i < 3u; ++i) {
+        mca_status_t st = MCA_OK;
+        if (mask[i] == 0u) {
+            mca_zero_bytes(&rep[i], sizeof(rep[i]));
+        } else {
+            st = axis_update(&cs->axis[i], pos[i], vel[i], r_pos[i], r_vel[i], mask[i], ws, &rep[i], NULL);
+        }
+        result = result == MCA_OK ? st : result;
+    }
+    return result;
 }
 
 mca_status_t mca_cs3_update_nocheck(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
-                                    const float r_vel[3], const uint8_t mask[3], float *ws,
-                                    mca_update_report_t rep[3])
+                                    const float r_vel[3], const uint8_t mask[3], float *ws)
 {
-    /* Axes are independent; C = H P H^T + R is positive definite whenever P is PSD and
-     * R > 0 (checked by the caller), so an update can fail now only by float overflow, which
-     * leaves that axis unchanged (mca_kf_update is atomic). */
     mca_status_t result = MCA_OK;
     pair_rows(cs, pos, vel, r_pos, r_vel, mask, ws);
-    if (rep != NULL) {
-        for (size_t i = 0; i < 3u; ++i) {
-            mca_status_t st = MCA_OK;
-            if (mask[i] == 0u) {
-                mca_zero_bytes(&rep[i], sizeof(rep[i]));
-            } else {
-                st = axis_update(&cs->axis[i], pos[i], vel[i], r_pos[i], r_vel[i], mask[i], ws, &rep[i], NULL);
-            }
-            result = result == MCA_OK ? st : result;
-        }
-        return result;
-    }
     /* No reports: N and E share one covariance update when they can (axis_update_shared); in
      * fixed mode their P stay the same bits while both take every fix plainly. */
     const mca_cs_axis_t *an = &cs->axis[0], *ae = &cs->axis[1];

@@ -8,11 +8,11 @@
 
 #include "mcahrs/mca_cs.h"
 
-/* mca_cs3_update with every pointer non-NULL, at least one mask non-zero and each non-zero mask
- * of MCA_CS_POS | MCA_CS_VEL only, the measured values finite and their variances finite and > 0 */
+/* mca_cs3_update without reports (rep NULL), every pointer non-NULL, at least one mask non-zero
+ * and each non-zero mask of MCA_CS_POS | MCA_CS_VEL only, the measured values finite and their
+ * variances finite and > 0 */
 mca_status_t mca_cs3_update_nocheck(mca_cs3_t *cs, const float pos[3], const float vel[3], const float r_pos[3],
-                                    const float r_vel[3], const uint8_t mask[3], float *ws,
-                                    mca_update_report_t rep[3]);
+                                    const float r_vel[3], const uint8_t mask[3], float *ws);
 
 /* mca_cs3_init with every pointer but pos_ned_m / vel_ned_mps non-NULL, both configurations
  * valid (mca_cs_config_check) and the given position and velocity finite */

@@ -878,7 +878,7 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     /* No report (T is read from the axis memory; N and E can then share one covariance
      * update). An axis can fail only numerically, and then it is left unchanged
      * (mca_cs_axis_update is atomic) and keeps its T. */
-    const mca_status_t st = mca_cs3_update_nocheck(&nav->cs, ned, fv->vel_ned_mps, rp, rv, mask, nav->ws, NULL);
+    const mca_status_t st = mca_cs3_update_nocheck(&nav->cs, ned, fv->vel_ned_mps, rp, rv, mask, nav->ws);
     for (size_t i = 0; i < 3u; ++i) {
         if (mask[i] != 0u) {
             nav->last_gps_t[i] = nav->cs.axis[i].rs.t_stat; /* NaN until an update succeeds */

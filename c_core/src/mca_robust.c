@@ -423,97 +423,19 @@ MCA_NOINLINE static void plan_igg(mca_plan_t *pl, const mca_robust_config_t *rc,
 /* ---------------------------------------------------------------- products with H
  *
  * The measurement rows are sparse (a CS row has two ones in five columns, the roll/pitch
- * rows three entries in six), so every product with H runs over the non-zero entries of H
- * only. Skipping a zero entry is exact, not an approximation: its product with a finite
- * value is +-0, every sum below starts at +0 and so is never -0 (in round-to-nearest
- * x + (-x) = +0 and +0 + -0 = +0), and adding +-0 to such a sum changes no bit. So nu,
- * P H^T and H P H^T are bit for bit the dense mca_mat_mul products, in the same order. */
+ * rows three entries in six). The row path (apply_rows, every plain update and the robust ones
+ * with an unscaled gain) runs over the non-zero entries of H only. Skipping a zero entry is
+ * exact, not an approximation: its product with a finite value is +-0, every sum there starts
+ * at +0 and so is never -0 (in round-to-nearest x + (-x) = +0 and +0 + -0 = +0), and adding +-0
+ * to such a sum changes no bit. The robust modes' joint path (update_general, apply) takes the
+ * dense mca_mat_mul products, the same bits in the same order: until session 28 it had sparse
+ * copies of them and its own gain solve (the reciprocals of the factor's diagonal taken once),
+ * 404 B of flash for a few hundred instructions of a robust update, which no speed goal asks for
+ * (scripts/fw_report.py: the goals are the plain filter's). */
 
 static int nonzero(float v)
 {
     return v > 0.0f || v < 0.0f;
-}
-
-/* out (m) = H (m x n) v (n) */
-static void h_times_vec(float *out, const float *h, const float *v, size_t m, size_t n)
-{
-    for (size_t i = 0; i < m; ++i) {
-        float s = 0.0f;
-        for (size_t l = 0; l < n; ++l) {
-            const float hv = h[i * n + l];
-            if (nonzero(hv)) {
-                s += hv * v[l];
-            }
-        }
-        out[i] = s;
-    }
-}
-
-/* u (n x m) = P H^T, column j = sum over the non-zero h_jl of P's column l times h_jl
- * (P symmetric: row l of P is read, as mca_mat_mul_bt(u, p, h) reads it). */
-static void p_ht(float *u, const float *p, const float *h, size_t n, size_t m)
-{
-    for (size_t j = 0; j < m; ++j) {
-        for (size_t i = 0; i < n; ++i) {
-            u[i * m + j] = 0.0f;
-        }
-        for (size_t l = 0; l < n; ++l) {
-            const float hv = h[j * n + l];
-            if (!nonzero(hv)) {
-                continue;
-            }
-            for (size_t i = 0; i < n; ++i) {
-                u[i * m + j] += p[i * n + l] * hv;
-            }
-        }
-    }
-}
-
-/* s (m x m) = H u, u = P H^T (n x m) */
-static void h_times_u(float *s, const float *h, const float *u, size_t n, size_t m)
-{
-    for (size_t i = 0; i < m * m; ++i) {
-        s[i] = 0.0f;
-    }
-    for (size_t i = 0; i < m; ++i) {
-        for (size_t l = 0; l < n; ++l) {
-            const float hv = h[i * n + l];
-            if (!nonzero(hv)) {
-                continue;
-            }
-            for (size_t j = 0; j < m; ++j) {
-                s[i * m + j] += hv * u[l * m + j];
-            }
-        }
-    }
-}
-
-/* K = U C_eff^-1 row by row in place (kk, n x m), from the Cholesky factor l of C_eff: the
- * forward and back substitutions of mca_cholesky_solve with the m reciprocals of the diagonal
- * taken once (m divisions instead of 2 n m). */
-static void solve_rows(const float *l, float *kk, size_t n, size_t m)
-{
-    float inv[MCA_MEAS_MAX];
-    for (size_t i = 0; i < m; ++i) {
-        inv[i] = 1.0f / l[i * m + i];
-    }
-    for (size_t row = 0; row < n; ++row) {
-        float *b = &kk[row * m];
-        for (size_t i = 0; i < m; ++i) {
-            float acc = b[i];
-            for (size_t k = 0; k < i; ++k) {
-                acc -= l[i * m + k] * b[k];
-            }
-            b[i] = acc * inv[i];
-        }
-        for (size_t i = m; i-- > 0;) {
-            float acc = b[i];
-            for (size_t k = i + 1u; k < m; ++k) {
-                acc -= l[k * m + i] * b[k];
-            }
-            b[i] = acc * inv[i];
-        }
-    }
 }
 
 /* nu^T C^-1 nu from the Cholesky factor l of C; t (m) is scratch. */
@@ -528,13 +450,6 @@ static float nis(const float *l, const float *nu, float *t, size_t m)
     return s;
 }
 
-/* 1 when the gain covariance differs from C (re-factor needed). Plain and undetected epochs
- * return 0, so they are the section-1 update bit for bit. */
-static int refactor_needed(const mca_plan_t *pl, size_t m)
-{
-    return pl->use_d || pl->gamma > 1.0f || pl->keep != (1u << m) - 1u;
-}
-
 /* The scratch blocks update_general carved (layout above) that apply works in, passed as one
  * pointer rather than as 9 stack arguments. */
 typedef struct {
@@ -545,55 +460,49 @@ typedef struct {
 /* Section-1 steps 4-6 with the plan: gain from C_eff = gamma (C + diag(d)) over the kept rows
  * (zero gain column for the others), x+ = x + K nu, Joseph with R_eff = R + diag(d),
  * symmetrised, finite check, then x and p written. c holds C (for IGG already with d on its
- * diagonal: c_has_d), l its Cholesky factor, kk P H^T, t the increments d, y nu. */
+ * diagonal: c_has_d), l scratch for C_eff's factor, kk P H^T, t the increments d, y nu. */
 static mca_status_t apply(float *x, float *p, size_t n, const float *h, const float *r, size_t m,
-                          const mca_plan_t *pl, const mca_ws_blocks_t *w, int refactor, int c_has_d)
+                          const mca_plan_t *pl, const mca_ws_blocks_t *w, int c_has_d)
 {
     float *pn = w->pn, *kk = w->kk, *a = w->a, *b = w->b, *t = w->t, *c = w->c, *l = w->l, *xn = w->xn;
     const float *y = w->y;
     const float *d = t;
-    size_t mk = m;
-    if (refactor) {
-        if (pl->use_d && !c_has_d) {
-            for (size_t i = 0; i < m; ++i) {
-                c[i * m + i] += d[i];
-            }
-        }
-        mk = 0u;
+    if (pl->use_d && !c_has_d) {
         for (size_t i = 0; i < m; ++i) {
-            mk += (pl->keep >> i) & 1u;
+            c[i * m + i] += d[i];
         }
-        /* Compact the kept rows and columns to mk x mk at the start of c, scaled by gamma.
-         * Destination index <= source index and both increase: safe in place. */
-        size_t ik = 0u;
-        for (size_t i = 0; i < m; ++i) {
-            if ((pl->keep & (1u << i)) == 0u) {
-                continue;
+    }
+    size_t mk = 0u;
+    for (size_t i = 0; i < m; ++i) {
+        mk += (pl->keep >> i) & 1u;
+    }
+    /* Compact the kept rows and columns to mk x mk at the start of c, scaled by gamma.
+     * Destination index <= source index and both increase: safe in place. */
+    size_t ik = 0u;
+    for (size_t i = 0; i < m; ++i) {
+        if ((pl->keep & (1u << i)) == 0u) {
+            continue;
+        }
+        size_t jk = 0u;
+        for (size_t j = 0; j < m; ++j) {
+            if ((pl->keep & (1u << j)) != 0u) {
+                c[ik * mk + jk] = pl->gamma * c[i * m + j];
+                ++jk;
             }
-            size_t jk = 0u;
-            for (size_t j = 0; j < m; ++j) {
-                if ((pl->keep & (1u << j)) != 0u) {
-                    c[ik * mk + jk] = pl->gamma * c[i * m + j];
-                    ++jk;
-                }
-            }
-            ++ik;
         }
-        if (!mca_all_finite(c, mk * mk)) {
-            return MCA_ERR_NONFINITE; /* gamma C overflowed float (T near FLT_MAX) */
-        }
-        if (mca_cholesky(l, c, mk) != MCA_OK) {
-            return MCA_ERR_SINGULAR;
-        }
+        ++ik;
+    }
+    if (!mca_all_finite(c, mk * mk)) {
+        return MCA_ERR_NONFINITE; /* gamma C overflowed float (T near FLT_MAX) */
+    }
+    if (mca_cholesky(l, c, mk) != MCA_OK) {
+        return MCA_ERR_SINGULAR;
     }
     /* U = P H^T kept in a (n x m) for the Joseph step below */
     float *u = a;
     mca_copyf(u, kk, n * m);
     /* K = P H^T C_eff^-1, row by row in place: C_eff k_i = (P H^T)_i over the kept columns */
-    if (mk == m) {
-        solve_rows(l, kk, n, m);
-    }
-    for (size_t i = 0; i < n && mk != m; ++i) {
+    for (size_t i = 0; i < n; ++i) {
         float *row = &kk[i * m];
         size_t jk = 0u;
         for (size_t j = 0; j < m; ++j) { /* gather forward */
@@ -625,7 +534,7 @@ static mca_status_t apply(float *x, float *p, size_t n, const float *h, const fl
      * n x n x n products, and is symmetric by construction: the upper triangle is computed
      * and mirrored. */
     float *s = l; /* the Cholesky factor is no longer needed once K is solved */
-    h_times_u(s, h, u, n, m); /* H P H^T */
+    mca_mat_mul(s, h, u, m, n, m); /* H P H^T */
     for (size_t i = 0; i < m * m; ++i) {
         s[i] += c[i];
     }
@@ -1020,7 +929,7 @@ static void plan_init(mca_plan_t *pl, size_t m)
 /* C = H (P H^T) + R, symmetrised; u = P H^T (n x m). */
 static void form_c(float *c, const float *h, const float *u, const float *r, size_t n, size_t m)
 {
-    h_times_u(c, h, u, n, m);
+    mca_mat_mul(c, h, u, m, n, m);
     for (size_t i = 0; i < m * m; ++i) {
         c[i] += r[i];
     }
@@ -1047,11 +956,11 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
     float *lt = ct + m * m;
 
     /* nu = z - H x -> y; C = H P H^T + R (ALGORITHMS.md 1, step 1) */
-    h_times_vec(y, h, x, m, n);
+    mca_mat_mul(y, h, x, m, n, 1u);
     for (size_t i = 0; i < m; ++i) {
         y[i] = z[i] - y[i];
     }
-    p_ht(kk, p, h, n, m); /* P H^T (P symmetric) */
+    mca_mat_mul_bt(kk, p, h, n, n, m); /* P H^T (P symmetric) */
     form_c(c, h, kk, r, n, m);
     if (rep != NULL) {
         mca_zero_bytes(rep, sizeof(*rep));
@@ -1157,7 +1066,7 @@ static mca_status_t update_general(float *x, float *p, size_t n, const float *h,
         return MCA_ERR_NONFINITE; /* nothing is committed from a non-finite state */
     } else if (!pl.rejected) {
         const mca_ws_blocks_t wb = {pn, kk, a, b, t, c, l, xn, y};
-        const mca_status_t st = apply(x, p, n, h, r, m, &pl, &wb, refactor_needed(&pl, m), c_has_d);
+        const mca_status_t st = apply(x, p, n, h, r, m, &pl, &wb, c_has_d);
         if (st != MCA_OK) {
             return st;
         }

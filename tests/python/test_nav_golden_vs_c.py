@@ -191,6 +191,12 @@ TOL_FTA_INTAKE: dict[str, float] = {"acc_mps2": 3e-4, "cs_var_rel": 1e-3}
 # for the fixes after it: measured 1.52e-3 relative at 123.3 s (C 0.903605, golden 0.905121), 1.08e-3 at
 # 130 s; every decision equal, the restart's position within 3e-4 m on both sides.
 TOL_REF_FAR: dict[str, float] = {"gps_T_rel": 2e-3}
+# Fuzzy inflate's inflated updates (gamma > 1) solve the gain with mca_cholesky_solve since session 28 (a
+# division per pivot, where a copy of it multiplied by the reciprocals before): the same gain to rounding.
+# In fuzzy_inflate_car_pos_fault_ref_rx, while the 40 s fault goes in (24.5-25.5 s), the acceleration gap
+# grew from 3.3e-5 to 9.6e-5 m/s^2 at 24.7 s (velocity 2.1e-5 -> 5.1e-5 m/s, CS P 3.7e-5 -> 8.2e-5
+# relative), and it is under 2e-5 again from 25.5 s; no decision differs.
+TOL_INFLATE_GAIN: dict[str, float] = {"acc_mps2": 2e-4}
 
 # The velocity step test's rules of ALGORITHMS.md 8, GPS step 3 (fuzzy rows, the receiver model, the
 # simulated car; tests/python/test_nav.py's last two tests at short, fast recordings). An 18 s, 1.0 m/s
@@ -656,6 +662,7 @@ CASES: dict[str, Case] = {
         profile="fuzzy-inflate",
         receiver_model=True,
         gnss_faults=CAR_POS_FAULT_40S,
+        tol=TOL_INFLATE_GAIN,
     ),
     # Nothing pending on N and on E (MULTIROTOR_POS_FAULT_E_VEL_N): the golden model with the rule before
     # (4 J^2 <= B of the axis itself) parts from the C at 34.5 s (N's return into E's fault: 4 / 2
