@@ -441,7 +441,7 @@ static inline int fuzzy_rows(const mca_robust_config_t *rc)
 /* mca_nav_t.step_flags; PRE: the step test ran on the last fix (so u.step.pre is its); RET: this
  * fix restarts the CS, the end of a fault it took in (set by gps_cs: GPS steps 3 and 4); REF:
  * u.step.ref holds the position reference (aligned only, set by gps_cs: GPS step 4) */
-enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u, STEP_PRE = 8u, STEP_RET = 16u, STEP_REF = 32u };
+enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u, STEP_PRE = 8u, STEP_RET = 16u, STEP_REF = 32u, STEP_PHOLD = 64u };
 
 /* The fuzzy memories' D of N and E raised to at least v (up) or lowered to at most v. */
 MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
@@ -450,6 +450,14 @@ MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
         float *d = &nav->cs.axis[i].rs.d_k;
         *d = (up ? *d < v : *d > v) ? v : *d;
     }
+}
+
+/* The receiver's position error over t (ALGORITHMS.md 8, GPS steps 3 and 4): the white part w at
+ * both ends and the Gauss-Markov part's wander, 2 (w^2 + sigma_p^2 t / tau_p), cs_h's. */
+MCA_NOINLINE static float hold_var(const mca_nav_t *nav, float w, float t)
+{
+    const mca_cs_config_t *c = &nav->cs.axis[0].cfg;
+    return 2.0f * (w * w + c->sigma_p_m * c->sigma_p_m * t / c->tau_p_s);
 }
 
 /* The velocity step test (ALGORITHMS.md 8, GPS step 3): the fix's N/E velocity against the
@@ -487,9 +495,7 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
      * their positions' change, still say the step (nearer it than 0, beyond the receiver's
      * position error over the hold), however far the anchor has drifted. */
     const int rows = fuzzy_rows(&nav->cs.axis[0].cfg.robust);
-    const float w = white_part(fv->h_acc_m, nav->cfg.gps_pos_white_m);
-    const float sp = nav->cs.axis[0].cfg.sigma_p_m;
-    const float var_p = 2.0f * (w * w + sp * sp * nav->u.step.pv[2] / nav->cs.axis[0].cfg.tau_p_s);
+    const float var_p = hold_var(nav, white_part(fv->h_acc_m, nav->cfg.gps_pos_white_m), nav->u.step.pv[2]);
     const int by_pos = rows && hold != 0u && 2.0f * pv >= n0 * nav->u.step.pv[2] && pv * pv > g * n0 * var_p;
     const int fail = e2 > g * c ? hold != 0u || (nav->step_flags & STEP_PRE) == 0u || pp > g * c
                                 : hold != 0u && (2.0f * ds >= n0 || by_pos);
@@ -811,7 +817,62 @@ static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
         nav->pos_prev[i] = NAN;
         nav->pos_jump[i] = 0.0f;
     }
-    nav->step_flags &= (uint8_t)~STEP_REF; /* and its reference: the next quiet fix's */
+    nav->step_flags &= (uint8_t)~(STEP_REF | STEP_PHOLD); /* and its reference: the next quiet fix's */
+}
+
+/* The position hold before the update (fuzzy rows; ALGORITHMS.md 8, GPS step 4): the anchor
+ * carried on by d, a fix that steps back (the reverse of the held step) disarms, and a hold is kept
+ * (the N/E pair's position rows out, with the alarm) or ended. Returns PH_RESTART for a fix that
+ * steps back with no hold at its start (restarted when its update leaves a position row out) and
+ * PH_START for one that starts a hold when its update leaves a position row out (with no hold at
+ * its start, beyond the receiver's error from the anchor). Sets pos_prev (z_prev) to the fix. w:
+ * the white part of h_acc. */
+enum { PH_RESTART = 1, PH_START = 2 };
+MCA_NOINLINE static int pos_hold(mca_nav_t *nav, const float ned[3], const float d[2], float t, float w)
+{
+    const int pref = nav->aligned && (nav->step_flags & STEP_REF) != 0u;
+    const int holding = (nav->step_flags & STEP_PHOLD) != 0u;
+    const float hs = (holding ? nav->pos_hold_s : 0.0f) + t;
+    const float v = hold_var(nav, w, hs);
+    float es = 0.0f, ss = 0.0f, rs = 0.0f, rr = 0.0f, ee = 0.0f, jj = 0.0f;
+    for (size_t i = 0; i < 2u; ++i) {
+        const float s0 = nav->pos_jump[i];
+        const float r = ned[i] - nav->pos_prev[i] - d[i]; /* this fix's jump (NaN after a start) */
+        nav->pos_prev[i] = ned[i];
+        if (pref) { /* (aligned: before alignment, nav->u is the alignment's) */
+            nav->u.step.ref[i] += d[i];
+            const float e = ned[i] - nav->u.step.ref[i];
+            es += e * s0;
+            ee += (e - s0) * (e - s0);
+            jj += e * e;
+            rs += r * s0;
+            rr += r * r;
+            ss += s0 * s0;
+        }
+    }
+    const float g4 = mca_chi2_quantile(2u, MCA_CHI2_1E4);
+    const int back = rs < 0.0f && rs * rs >= 0.5f * rr * ss && fabsf(rr - 1.25f * ss) <= ss;
+    if (back) {
+        nav->pos_jump[0] = nav->pos_jump[1] = 0.0f;
+    }
+    if (pref && holding) {
+        nav->pos_hold_s = hs;
+        /* kept: not the step back, nearer the held step than the anchor, still the held step within
+         * the receiver's wander, and within the guard or the step beyond the wander */
+        if (!back && 2.0f * es >= ss && ee <= g4 * v &&
+            (nav->cs.axis[0].rs.n_removed[0] < nav->cs.axis[0].cfg.robust.reject_reset_n ||
+             es * es > mca_chi2_quantile(2u, MCA_CHI2_5E3) * ss * v)) {
+            nav->cs.axis[0].rs.started |= MCA_CS_POS;
+            nav->cs.axis[1].rs.started |= MCA_CS_POS;
+            step_dk(nav, 2.0f, 1);
+        } else {
+            nav->step_flags &= (uint8_t)~(STEP_PHOLD | STEP_REF);
+            if (nav->step_hold == 0u) {
+                step_dk(nav, 1.0f, 0);
+            }
+        }
+    }
+    return pref && !holding ? (back ? PH_RESTART : jj > g4 * v ? PH_START : 0) : 0;
 }
 
 /* GPS steps 2-4 of a fix within dt_max of the last one (ALGORITHMS.md 8): the CS predict to
@@ -838,37 +899,37 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     const float x0[2] = {nav->cs.axis[0].x[0], nav->cs.axis[1].x[0]};
     cs_predict(nav, fix->t_us, t, fv);
     const uint8_t held = nav->step_hold;
-    if (held != 0u && fuzzy_rows(&nav->cs.axis[0].cfg.robust)) {
+    const int rows = fuzzy_rows(&nav->cs.axis[0].cfg.robust);
+    if (held != 0u && rows) {
         /* the step test's position check (GPS step 3): a held fix after the first adds its
-         * velocity less its position change since the last, held too; pos_prev, the position
-         * return rule's memory, is the last held fix's here */
+         * velocity less its position change since the last fix, held too */
         for (size_t i = 0; i < 3u; ++i) {
             const float d =
                 i < 2u ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i]) - (ned[i] - nav->pos_prev[i]) : t;
             nav->u.step.pv[i] = held > 1u ? nav->u.step.pv[i] + d : 0.0f;
         }
-        mca_copyf(nav->pos_prev, ned, 2u);
     }
     /* the end of a position fault the CS took in (GPS step 4): the modes that take a long fault
      * in (not plain, which handles none, nor fuzzy rows, which holds the position row out); the
      * fixes' motion from their velocities (the trapezoid): a fault the CS takes in through its
-     * velocity moves the CS prediction, not them */
+     * velocity moves the CS prediction, not them; in fuzzy rows the position hold */
     int pos = 0, near = POS_NEAR, ran = 0, ax_bits[2] = {0, 0};
     const int vv = has_vne && (nav->prev_vel_mask & 3u) == 3u;
+    float d[2];
     for (size_t i = 0; i < 2u; ++i) {
         const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
-        if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !fuzzy_rows(rc)) {
-            /* on a fix the step test holds after its first the fixes' velocity has the fault: the
-             * CS's predicted change, as without velocities */
-            const float d = vv && nav->step_hold < 2u ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i])
-                                                      : nav->cs.axis[i].x[0] - x0[i];
-            const int b = pos_return(nav, i, ned[i], rp[i], d, t);
+        /* on a fix the step test holds after its first the fixes' velocity has the fault: the
+         * CS's predicted change, as without velocities */
+        d[i] = vv && held < 2u ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i]) : nav->cs.axis[i].x[0] - x0[i];
+        if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !rows) {
+            const int b = pos_return(nav, i, ned[i], rp[i], d[i], t);
             pos |= b;
             near &= b;
             ax_bits[i] = b;
             ran = 1;
         }
     }
+    const int ph = rows ? pos_hold(nav, ned, d, t, h_acc) : 0;
     /* an axis returns on its jump, or with no fault pending on either axis: the restart takes both
      * (GPS step 4) */
     int ret_pos = 0;
@@ -887,7 +948,8 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     /* the end of a velocity fault the CS took in (GPS step 3): the step test's end of a fault, which
      * the CS then flags (in fuzzy rows and IGG-III: N or E left the velocity out) */
     const int flagged = fix_flagged(nav, fv->vel_mask);
-    const int ret = ((nav->step_flags & STEP_RET) != 0u && flagged) || ret_pos;
+    const int out = nav->cs.axis[0].rs.n_removed[0] > 0u || nav->cs.axis[1].rs.n_removed[0] > 0u;
+    const int ret = ((nav->step_flags & STEP_RET) != 0u && flagged) || ret_pos || (ph == PH_RESTART && out);
     if (ret) {
         /* the restart (GPS steps 3 and 4): N and E at the position reference when the fix is
          * within the material bound of it on both, with variance sigma_p^2 (the next fix splits
@@ -904,6 +966,17 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
         nav->step_flags |= STEP_RET;
     } else {
         nav->step_flags &= (uint8_t)~STEP_RET;
+        /* the position hold's start (GPS step 4), or the anchor at this fix */
+        if (ph == PH_START && out) {
+            nav->step_flags |= STEP_PHOLD;
+            nav->pos_hold_s = 0.0f;
+            for (size_t i = 0; i < 2u; ++i) {
+                nav->pos_jump[i] = ned[i] - nav->u.step.ref[i];
+            }
+        } else if (rows && nav->aligned && (nav->step_flags & STEP_PHOLD) == 0u) {
+            mca_copyf(nav->u.step.ref, ned, 2u);
+            nav->step_flags |= STEP_REF;
+        }
         /* the position reference: the CS position of a fix nothing was suspect in (no jump, no
          * fault pending, not flagged, not held), carried on by the fixes' motion (pos_return) */
         if (ran && nav->aligned && (pos & (POS_JUMPED | POS_PENDING)) == 0 && !flagged && nav->step_hold == 0u) {
@@ -1059,7 +1132,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                                                      (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) == 0u);
         mca_copyf(nav->u.step.v, fv.vel_ned_mps, 2u);
         nav->u.step.var = fv.s_acc_mps * fv.s_acc_mps;
-        nav->step_flags = (uint8_t)((nav->step_flags & (STEP_ARMED | STEP_REF)) | (ok ? STEP_ANCHOR : 0u) |
+        nav->step_flags = (uint8_t)((nav->step_flags & (STEP_ARMED | STEP_REF | STEP_PHOLD)) | (ok ? STEP_ANCHOR : 0u) |
                                     ((nav->step_flags & STEP_TESTED) != 0u ? STEP_PRE : 0u));
     }
     nav->prev_vel_mask = fv.vel_mask;

@@ -283,7 +283,7 @@ static void plan_fuzzy(mca_plan_t *pl, const mca_robust_config_t *rc, const mca_
                 }
             }
         }
-        drop |= alarm == 0u ? out : fail == 0u ? pl->keep : out != 0u ? out | was : 0u;
+        drop |= alarm == 0u ? out : (fail | pair) == 0u ? pl->keep : out != 0u ? out | was : 0u;
         /* for the pair, alarmed: the failing rows, and the rows kept out that went out no later
          * than any of them (a fault of both), not a row that went out on its own after them */
         out = alarm != 0u ? out : 0u;

@@ -638,3 +638,45 @@ def test_fuzzy_rows_pair() -> None:
     assert rep.alarm and rep.rejected  # row 0 fails, row 1 for the pair
     with pytest.raises(BadArgError):
         robust_update(x0, P0, H, [0.1, 0.1], R, cfg, RobustState(), pair_out=(True,))
+
+
+def test_fuzzy_rows_apply_the_rows_beside_the_pairs() -> None:
+    """ALGORITHMS.md 5, fuzzy rows while alarmed (session 28): with no row failing its own test (only the
+    joint T does) the update is rejected, unless the N/E pair has a row out of it (``pair_out``, or the
+    caller's rows the memory carries, ``caller_out``, which the update clears): then the rows neither failing
+    nor paired are applied, and none kept out (the rows the last two updates left out stay out only while a
+    row fails). H = I, P = I, R = 0.1 I: C = 1.1 I; z = 2.6 on each row is 6.1 of chi2_1(0.005) = 7.9 a row,
+    T = 12.3 past TD2 = 10.6, so the alarm stays."""
+    cfg = RobustConfig("fuzzy", fuzzy_reject=2)
+    H, R, P, x0, z = np.eye(2), 0.1 * np.eye(2), np.eye(2), np.zeros(2), np.array([2.6, 2.6])
+
+    def alarmed(n_removed: tuple[int, int] = (0, 0)) -> RobustState:
+        st = RobustState(alarm=True, d_k=1.9)
+        st.n_removed[:2] = list(n_removed)
+        return st
+
+    st = alarmed()
+    x, _, rep = robust_update(x0, P, H, z, R, cfg, st)
+    assert rep.alarm and rep.rejected and not x.any() and st.n_removed[:2] == [1, 1]
+    for pair in ((True, False), (False, True)):  # the other row applied
+        st = alarmed()
+        x, _, rep = robust_update(x0, P, H, z, R, cfg, st, pair_out=pair)
+        assert rep.alarm and not rep.rejected and [v == 0.0 for v in x] == list(pair)
+        assert st.n_removed[:2] == [int(v) for v in pair] and st.n_reject == 0
+    st = alarmed()
+    x, _, rep = robust_update(x0, P, H, z, R, cfg, st, pair_out=(True, True))  # every row out
+    assert rep.rejected and not x.any()
+    st = alarmed(n_removed=(0, 5))  # row 1 out for 5 updates, row 0 paired: no row fails, row 1 applied
+    x, _, rep = robust_update(x0, P, H, z, R, cfg, st, pair_out=(True, False))
+    assert not rep.rejected and x[0] == 0.0 and x[1] != 0.0 and st.n_removed[:2] == [1, 0]
+    st = alarmed()
+    st.caller_out[0] = True  # the caller's row, carried by the memory
+    x, _, rep = robust_update(x0, P, H, z, R, cfg, st)
+    assert rep.alarm and not rep.rejected and x[0] == 0.0 and x[1] != 0.0
+    assert st.n_removed[:2] == [1, 0] and not any(st.caller_out)  # cleared by the update
+    x, _, rep = robust_update(x0, P, H, z, R, cfg, st)  # the next update: no caller's row, rejected again
+    assert rep.rejected and not x.any()
+    # a row failing its own test: the pair's rows out with it, and the rows kept out stay out
+    st = alarmed(n_removed=(0, 5))
+    x, _, rep = robust_update(x0, P, H, np.array([6.0, 2.6]), R, cfg, st, pair_out=(False, False))
+    assert rep.rejected and not x.any()

@@ -887,6 +887,37 @@ def test_velocity_step_test_releases_a_burst_at_a_return_larger_than_its_first_s
     assert alarm[after].sum() == 0
 
 
+@pytest.mark.parametrize(
+    "name,preset", [("multirotor_aggressive", "multirotor"), ("fixedwing_turns", "fixedwing")]
+)
+def test_position_hold_keeps_a_small_position_burst_out_to_its_end(name: str, preset: str) -> None:
+    """ALGORITHMS.md 8, GPS step 4, fuzzy rows' position hold: an 18 s, 5.4 m position-only burst
+    (the size of the bursts ``bench_outliers.py`` missed on seeds 32, 49, 66, 77 and 79). With the
+    row out, the GPS-error state's variance grows back toward sigma_p^2 and the per-row test let the
+    burst in after a few seconds (measured before the hold: 34 % of its fixes alarmed, 66 clean fixes
+    alarmed after it, the fused position 3.1 m off the outlier-free run). Held against the anchor
+    carried on by the fixes' velocities, every fix after the first (whose own update starts the
+    hold) alarms, none after the burst, and the position stays within 0.5 m (measured 0.42). The
+    outlier-free runs raise no alarm."""
+    res = scenario(name, seed=3, duration_s=130.0)
+    rec = res.recording
+    bad, sel = _with_gnss_fault(rec, 90.0, 108.0, (3.7, -3.9), (0.0, 0.0))
+    t_s = rec.gnss["t_us"] * 1e-6
+    after = (t_s >= 108.0) & (t_s < 123.0)
+    profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
+    cfg = core.nav_config(preset, **{**profile, **_sim_receiver_model(res.params)})
+    clean, clean_alarm = _alarms_at_fixes(rec, cfg)
+    run, alarm = _alarms_at_fixes(bad, cfg)
+    at_fix = _fix_rows(run, rec.gnss)
+    dp = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
+    off = np.hypot(dp[:, 0], dp[:, 1])[sel | after].max()
+    print(alarm[sel].mean(), alarm[after].sum(), off)
+    assert alarm[sel][1:].all()
+    assert alarm[after].sum() == 0
+    assert off < 0.5
+    assert not clean_alarm.any()
+
+
 def test_velocity_step_test_blames_a_spike_that_passed_not_the_clean_fix_after_it() -> None:
     """ALGORITHMS.md 8, GPS step 3, with no fix held: a velocity 0.5 m/s off on one fix passes its
     own step test (the threshold is 0.66 m/s with s_acc 0.1), becomes the anchor, and the next fix,

@@ -211,10 +211,16 @@ CAR_BURST_FAULTS = ((40.0, 58.0, 0.0, 1.0, 306.87),)  # (0.6, -0.8) m/s
 CAR_SPIKE_OFFSETS = ((40.0, 0, -0.5, 0.0), (40.0, 1, 0.2, 0.0), (55.0, 0, 0.3, -0.4), (55.0, 1, -0.12, 0.16))
 # The end of a fault the CS took in (GPS step 3): a burst of both, 38 m and 4.7 m/s (bench_outliers.py
 # seed 18's), on exactly fuzzy rows' guard of fixes (reject_reset_n, 100 at 5 Hz: 10.2-30.0 s, the
-# cruise). The step test holds every burst fix, the CS rejects them, and its guard takes the fault in
-# plainly at the last one; the clean fix of 30.2 s is then the first after the hold, disarmed, which the
-# CS leaves its velocity out of: the CS restarts from it (no alarm after it, and no roll/pitch attempt
-# at it). Without the restart the CS alarmed on every clean fix to the end of the recording.
+# cruise). The step test holds every burst fix (the velocity rows out). Until session 28 the CS rejected
+# them and its guard took the fault in plainly at the last one. Now the position hold (GPS step 4) holds
+# the positions from 10.4 s until the anchor, carried on by the CS's coast, is 6.2 m off the held step
+# (19.4 s: |e - s_p|^2 > chi2_2(1e-4) V), the per-row test keeps them out after it, and at 26.6 s the
+# position passes as the last row standing (30.3 C_t) and is applied beside the step test's velocity rows
+# (section 5, session 28: before, no row failing rejected the update): the CS takes 22 m of the fault in.
+# The clean fix of 30.2 s is then the first after the step test's hold, disarmed, which the CS leaves its
+# velocity out of, and it steps back against the position hold's step while not holding, its position left
+# out: the CS restarts from it by either rule (no alarm after it, and no roll/pitch attempt at it). The
+# golden model with neither restart alarms on the clean fixes to 43.2 s (with one of them, as the C).
 CAR_GUARD_BOTH_FAULTS = ((10.1, 30.1, 38.0, 4.7, 120.0),)
 # The held fixes' positions (GPS step 3, fuzzy rows, session 27: while holding, a fix also fails when the held
 # fixes' velocities less their positions' change, summed as e over t_e, still say the held step). An 18 s, 1.1
@@ -360,6 +366,71 @@ CAR_POS_FAULT_40S = ((20.0, 60.0, 30.0, 0.0, 306.87),)
 MULTIROTOR_POS_FAULT_E_VEL_N = ((20.0, 50.0, 30.0, 0.0, 84.0),) + tuple(
     (25.0 + k, 37.0 - k, 0.0, 0.5, 0.0) for k in range(4)
 )
+# The position hold (GPS step 4, session 28; fuzzy rows, the receiver model, the simulated car of seed 1
+# unless said). The hold's numbers depend on the fixes alone (their positions, velocities and the receiver
+# model's V), so the same faults on the fixed-wing and the multirotor of seed 1 take the same decisions; each
+# recording is the simulator's at its own duration (another duration is another recording).
+# A small position-only burst held to its end: 6 m (N 3.6, E -4.8 m) over 20-35 s of the cruise. The burst's
+# first fix (20.0 s) is out by the per-row test, and the hold starts after its update (s_p = 3.42 / -5.02 m
+# against the anchor carried on by the fixes' velocities); every fix after it stays held (N and E position
+# rows out, D >= 2: N and E alarm) while the anchor wanders 2.6 m toward the fault with the receiver's
+# Gauss-Markov error (e . s_p / |s_p|^2 from 1.0 to 0.57 at 34.8 s), and the first clean fix (35.0 s) steps
+# back and ends it: no alarm after it, on both sides. The golden model without the hold (never anchored) lets
+# the burst in at 28.8 s, 9 s in, as the per-row test did before session 28 (the position's variance grown
+# back), and alarms on the clean fixes of 35.0-41.8 s: it parts from the C at 23.1 s (5 flag events).
+CAR_POS_BURST = ((20.0, 35.0, 6.0, 0.0, 306.87),)
+# A position fault longer than fuzzy rows' whole-update guard (reject_reset_n, 100 fixes at 5 Hz: 20 s), held
+# past it by the significance: 12 m (N 7.4, E -10.0 m) over 15-43 s (28 s). N's position row is out 100
+# updates in a row at 35.0 s, and from there the hold lasts only while (e . s_p)^2 > chi2_2(0.005) |s_p|^2 V:
+# 1.25-1.71 times that to the fault's last fix (42.8 s); its first clean fix steps back and ends the hold. The
+# golden model with the guard alone releases the hold at 35.0 s, the per-row test (the velocity applied, the
+# position's own level chi2_1(0.005)) takes the 12 m in at once there, and it parts from the C at 35.1 s (a
+# flag event, a roll/pitch decision); without the hold it lets the fault in after 34.8 s and alarms on the
+# clean fixes of 43.0-54.8 s. At 30 m the per-row test alone holds the fault out for its 28 s (the position's
+# variance does not grow to 30 m in that time): with the guard alone the golden model then parts from the C
+# only at the fault's first clean fix (43.1 s, one roll/pitch decision), which the alarms do not show.
+CAR_POS_FAULT_28S = ((15.0, 43.0, 12.0, 0.0, 306.87),)
+# A burst of both whose end the step back finds (seed 4): 8 m and 1.5 m/s east (azimuth 90 deg) over 20-35 s,
+# through the car's braking to a stop. The velocity step test holds every burst fix (the velocity rows out),
+# the hold the positions (s_p = -0.39 / +8.26 m), so the CS coasts on the IMU through the braking, and the
+# anchor, carried on by the CS's predicted change on the fixes the step test holds after its first, drifts
+# with that coast: 7.5 m west by 34.8 s (e 15.7 m east; the coast reaches the stop 1 m/s off). The first clean
+# fix (35.0 s, e = -2.12 / +7.44 m) is then nearer the held step than the anchor (2 e . s_p = 1.82 |s_p|^2),
+# within g4 V of it and under the guard: only its step back (r against s_p) ends the hold, on both sides, and
+# the CS, its position variance grown to 42 m^2, takes the fix in whole (no alarm, no restart). The golden
+# model without the step back in the hold's rule keeps the clean fixes held to 46.0 s and parts from the C at
+# 35.1 s (a flag event).
+CAR_BURST_BOTH_BACK = ((20.0, 35.0, 8.0, 1.5, 90.0),)
+# The hold's restart (a fix that steps back while not holding, its N or E update leaving the position row
+# out): the burst of CAR_POS_BURST 2 s longer (20-37 s). The anchor's wander with the receiver's error (e .
+# s_p / |s_p|^2 0.45 at 35.4 s: nearer the anchor than the held step) releases the hold 1.6 s before the
+# burst's end; the anchor restarts at the faulty fixes, and the CS, its alarm released, takes part of the
+# fault in. The first clean fix (37.0 s) steps back against the held step kept, its update leaves the position
+# out, and the CS restarts from it on both sides (no alarm after 35.2 s). The golden model without the restart
+# alarms on the clean fixes of 37.0-45.6 s and parts from the C at 37.1 s (3 flag events, a roll/pitch
+# decision).
+CAR_POS_BURST_RESTART = ((20.0, 37.0, 6.0, 0.0, 306.87),)
+# A fix that steps back while holding ends the hold and restarts nothing ("while not holding": holding at the
+# fix's start): the burst of CAR_POS_BURST with a 0.4 m/s velocity fault the other way (azimuth 126.87 deg),
+# small enough for the velocity step test and the CS to let in. The anchor, carried on by the faulty
+# velocities, runs from the fixes along s_p (e . s_p / |s_p|^2 1.0 -> 1.7), the CS (velocity in, position held
+# out) the same way, and the first clean fix (35.0 s) is still nearer the held step than the anchor (2 e . s_p
+# = 1.08 |s_p|^2): its step back ends the hold, while E's update, the CS off by the velocity it took in,
+# leaves the position (and the velocity) out. No restart on either side; E alarms after 35.0 and 35.2 s. The
+# golden model reading *holding* after the release restarts the CS there and parts from the C at 35.1 s (10 /
+# 11 roll/pitch decisions, 2 flag events); without the step back the first clean fix stays held, and it parts
+# there too.
+CAR_POS_VEL_DRIFT = ((20.0, 35.0, 6.0, 0.0, 306.87), (20.0, 35.0, 0.0, 0.4, 126.87))
+# The hold's restart on a fix the velocity step test holds, and p_last NaN (GPS step 3: every CS
+# (re-)initialisation makes z_prev NaN): CAR_POS_BURST_RESTART with an 18 s, 1.1 m/s east velocity burst from
+# 36.0 s. The step test holds from 36.0 s; the position hold restarts the CS at 37.0 s (n = 6 kept), so the
+# next held fix sums T (v_fix + v_last) / 2 - (p_fix - NaN) and the held fixes' positions say nothing for the
+# rest of the hold: the anchor test alone releases it at 50.0 s, 4 s before the burst's end (no alarm after
+# 49.8 s; the CS takes the rest of the burst in and restarts at its end, 54.0 s, GPS step 3), on both sides.
+# The golden model that adds nothing for the NaN term (or restarts the sum there) keeps the positions' rule
+# and the hold to the burst's end, and parts from the C at 50.1 s (19 / 20 roll/pitch decisions, 3 flag
+# events); without the restart it alarms from 20.0 s to 53.8 s and parts at 37.1 s.
+CAR_POS_BURST_RESTART_HELD = CAR_POS_BURST_RESTART + ((36.0, 54.0, 0.0, 1.1, 90.0),)
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -669,6 +740,66 @@ CASES: dict[str, Case] = {
     # roll/pitch decisions, a flag event; 10.2 / 15.8 m N / E at once, 29.8 m on E after the fault's end,
     # 0.74 deg of roll/pitch). IGG-III's steep weights: TOL_IGG (measured 8.7e-5 m/s^2 at 28.1 s, 3.0e-4 m/s,
     # 4.9e-4 m, 8.7e-5 relative on the CS P, 1.0e-4 on gps_T).
+    # The position hold (GPS step 4, session 28): CAR_POS_BURST, CAR_POS_FAULT_28S, CAR_BURST_BOTH_BACK,
+    # CAR_POS_BURST_RESTART, CAR_POS_VEL_DRIFT, CAR_POS_BURST_RESTART_HELD. Every decision equal; within TOL
+    # (measured at most 1.8e-5 rad of attitude, 4.9e-4 m, 1.2e-4 m/s, 1.7e-4 relative on the attitude P,
+    # 1.9e-5 on the CS P, 5.1e-4 on gps_T) but the acceleration of CAR_POS_BURST_RESTART_HELD's coast through
+    # its velocity hold, 3.5e-4 m/s^2 (TOL_COAST; 2.9e-5 on CAR_BURST_BOTH_BACK's, 5.6e-6 on the others).
+    "rows_car_pos_burst_rx": Case(
+        "car_accel_brake",
+        "ground",
+        50.0,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_POS_BURST,
+        tol=TOL_COAST,
+    ),
+    "rows_car_pos_fault_28s_rx": Case(
+        "car_accel_brake",
+        "ground",
+        55.0,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_POS_FAULT_28S,
+        tol=TOL_COAST,
+    ),
+    "rows_car_burst_both_back_rx": Case(
+        "car_accel_brake",
+        "ground",
+        47.0,
+        seed=4,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_BURST_BOTH_BACK,
+        tol=TOL_COAST,
+    ),
+    "rows_car_pos_burst_restart_rx": Case(
+        "car_accel_brake",
+        "ground",
+        50.0,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_POS_BURST_RESTART,
+        tol=TOL_COAST,
+    ),
+    "rows_car_pos_vel_drift_rx": Case(
+        "car_accel_brake",
+        "ground",
+        47.0,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_POS_VEL_DRIFT,
+        tol=TOL_COAST,
+    ),
+    "rows_car_pos_restart_held_rx": Case(
+        "car_accel_brake",
+        "ground",
+        62.0,
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_POS_BURST_RESTART_HELD,
+        tol=TOL_COAST,
+    ),
     "igg3_multirotor_pos_fault_e_rx": Case(
         "multirotor_aggressive",
         "multirotor",
@@ -1058,8 +1189,9 @@ def test_c_matches_golden_step_by_step(name: str) -> None:
 def test_guard_burst_of_both_ends_with_a_cs_restart_on_both_sides() -> None:
     """rows_car_guard_both_rx reaches the rule it is for (ALGORITHMS.md 8, GPS step 3, the end of a
     fault the CS took in): its burst lasts exactly fuzzy rows' whole-update guard of fixes, both sides
-    alarm on N and E through it, and neither after its last fix (the CS restarted from the first clean
-    one; without the restart it alarmed to the end)."""
+    alarm on N and E through it, and neither after its first clean fix, from which the CS restarts (a
+    restart at the fix: the N position variance ``p0_var_m2`` after it; without the restarts it alarmed
+    to 43.2 s). The alarm set by the burst's last fix lasts until that clean fix is received."""
     case = CASES["rows_car_guard_both_rx"]
     rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording
     t0, t1 = case.gnss_faults[0][:2]
@@ -1069,18 +1201,33 @@ def test_guard_burst_of_both_ends_with_a_cs_restart_on_both_sides() -> None:
     c, g = _runs("rows_car_guard_both_rx")
     alarm = core.FLAG_BITS["alarm_n"] | core.FLAG_BITS["alarm_e"]
     t_last = t_fix[t_fix < t1][-1]
+    first_clean = int(np.flatnonzero(t_fix >= t1)[0])
+    t_clean_rx = rec.gnss["t_rx_us"][first_clean] * 1e-6  # its GPS step (after the IMU sample of that time)
     for flags in (c["flags"], g["flags"]):
         on = (flags.astype(np.int64) & alarm) == alarm
         t = g["t_us"] * 1e-6
         assert np.all(on[(t > t0 + 0.5) & (t < t_last)])
-        assert not np.any(on[t > t_last + 0.25])
+        assert not np.any(on[t > t_clean_rx])  # at equal times the IMU sample comes first
+    restarts = _restarts("rows_car_guard_both_rx")[1]
+    assert restarts[0] == restarts[1] == [0, first_clean]
 
 
-# The fixes (times in [t0, t1), s) after which N and E alarm in the cases of the test below, and no others.
-ALARMED_FIXES: dict[str, tuple[float, float]] = {
-    "rows_multirotor_drift_burst_rx": (20.0, 38.0),  # the burst's fixes
-    "rows_car_half_onset_burst_rx": (15.0, 30.0),  # the burst's fixes
-    "rows_fixedwing_first_held_rx": (20.0, 23.8),  # released 14 s before the burst's end
+# The fixes (times in [t0, t1), s, one or more spans) after which N or E alarms in the cases of the test
+# below, and no others.
+ALARMED_FIXES: dict[str, tuple[tuple[float, float], ...]] = {
+    "rows_multirotor_drift_burst_rx": ((20.0, 38.0),),  # the burst's fixes
+    "rows_car_half_onset_burst_rx": ((15.0, 30.0),),  # the burst's fixes
+    # released 14 s before the burst's end; the alarm with it since session 28 (the position applied beside
+    # the held velocity keeps the CS on the fixes: before, the CS coasted and the release fix's position
+    # failed, so the alarm lasted one fix more, 23.6 s)
+    "rows_fixedwing_first_held_rx": ((20.0, 23.6),),
+    # the position hold (GPS step 4, session 28)
+    "rows_car_pos_burst_rx": ((20.0, 35.0),),  # the burst's fixes, held to its end (no hold: 20.0-28.8 s)
+    "rows_car_pos_fault_28s_rx": ((15.0, 43.0),),  # the fault's fixes, past the guard (guard alone: 34.8 s)
+    "rows_car_burst_both_back_rx": ((20.0, 35.0),),  # the burst's fixes (without the step back: to 46.0 s)
+    "rows_car_pos_burst_restart_rx": ((20.0, 35.4),),  # released at 35.4 s, restarted at 37.0 s
+    "rows_car_pos_vel_drift_rx": ((20.0, 35.4),),  # E's position out at 35.0 and 35.2 s, no restart
+    "rows_car_pos_restart_held_rx": ((20.0, 37.0), (37.2, 50.0)),  # the restart at 37.0 s; released at 50.0 s
 }
 
 
@@ -1094,20 +1241,58 @@ def test_burst_held_by_the_positions_alarms_on_the_same_fixes_on_both_sides(name
     fix, 1.56 times the held step back (without the positions' rule it released 11 s before the burst's end,
     and its end was held 20 s); the car's releases at its first clean fix, 1.54 times the held step back
     (with the size window asked there, 5 s later); the fixed-wing's releases 14 s into the burst (with the
-    hold's first fix's term summed, at its end)."""
+    hold's first fix's term summed, at its end).
+    So do the cases of GPS step 4's position hold (session 28): CAR_POS_BURST held to its end,
+    CAR_POS_FAULT_28S past the whole-update guard by the significance, CAR_BURST_BOTH_BACK's end found by
+    its step back (the anchor carried off on the CS's coast), CAR_POS_BURST_RESTART released before its end
+    by the anchor's wander, CAR_POS_VEL_DRIFT's end a step back while holding, and
+    CAR_POS_BURST_RESTART_HELD's velocity hold released before the burst's end once the restart made
+    ``p_last`` NaN (their golden models without the rule alarm on other fixes: see each fault plan's
+    comment). Their restarts: test_position_hold_restarts_the_cs_at_the_same_fixes_on_both_sides."""
     case = CASES[name]
     rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording
-    t0, t1 = ALARMED_FIXES[name]
     t_fix = rec.gnss["t_us"].astype(np.int64) * 1e-6
     c, g = _runs(name)
     row = np.searchsorted(g["t_us"], rec.gnss["t_rx_us"].astype(np.int64), side="right")  # after each fix
     ok = row < len(g["t_us"])
-    alarmed = ((t_fix >= t0 - 1e-3) & (t_fix < t1 - 1e-3))[ok]
+    spans = [(t_fix >= t0 - 1e-3) & (t_fix < t1 - 1e-3) for t0, t1 in ALARMED_FIXES[name]]
+    alarmed = np.any(spans, axis=0)[ok]
     alarm = core.FLAG_BITS["alarm_n"] | core.FLAG_BITS["alarm_e"]
     for flags in (c["flags"], g["flags"]):
         at_fix = flags[row[ok]].astype(np.int64) & alarm
         assert np.all(at_fix[alarmed] != 0)
         assert not np.any(at_fix[~alarmed])
+
+
+# The CS restarts of the position hold's cases (fix times, s, home excluded): the hold's restart at a fault's
+# end that steps back while not holding (CAR_POS_BURST_RESTART; CAR_POS_BURST_RESTART_HELD's on a fix the step
+# test holds, and then at 54.0 s GPS step 3's end of the velocity burst, which the CS took in after the
+# velocity hold's release at 50.0 s), and none at a fault's end that steps back while holding
+# (CAR_POS_VEL_DRIFT) or ends a hold that kept the fault out (CAR_BURST_BOTH_BACK's CS, coasted 7.5 m off,
+# takes its first clean fix in whole).
+HOLD_RESTARTS: dict[str, tuple[float, ...]] = {
+    "rows_car_pos_burst_rx": (),
+    "rows_car_pos_fault_28s_rx": (),
+    "rows_car_burst_both_back_rx": (),
+    "rows_car_pos_burst_restart_rx": (37.0,),
+    "rows_car_pos_vel_drift_rx": (),
+    "rows_car_pos_restart_held_rx": (37.0, 54.0),
+}
+
+
+@pytest.mark.parametrize("name", list(HOLD_RESTARTS))
+def test_position_hold_restarts_the_cs_at_the_same_fixes_on_both_sides(name: str) -> None:
+    """ALGORITHMS.md 8, GPS step 4, the position hold's restart: a fix that steps back while not holding,
+    whose N or E update left its position row out, restarts the CS (as the end of a position fault the CS
+    took in, at the fix: the N position variance ``p0_var_m2`` after it). In the cases of
+    ``HOLD_RESTARTS`` the CS restarts at home and at those fixes only, on both sides (without the hold's
+    restart, the golden model of CAR_POS_BURST_RESTART and CAR_POS_BURST_RESTART_HELD restarts at home
+    only and parts from the C there)."""
+    rec, restarts, _ = _restarts(name)
+    t_fix_us = rec.gnss["t_us"].astype(np.int64)
+    expected = [0] + [int(np.flatnonzero(t_fix_us == round(t * 1e6))[0]) for t in HOLD_RESTARTS[name]]
+    assert restarts[1] == expected
+    assert restarts[0] == restarts[1]
 
 
 # Restarts other than home and the fault's end (fix times, s) and the least move of the CS horizontal

@@ -143,7 +143,8 @@ typedef struct {
             float s0[2];  /**< the step that started the last hold */
             float var;    /**< the anchor's variance an axis: its fix's s_acc^2, plus coast_h t^2 a fix held */
             float pre[2]; /**< the anchor before the last, carried on to the last fix */
-            float ref[2]; /**< N, E: the position reference of a restart (ALGORITHMS.md 8, GPS step 4) */
+            float ref[2]; /**< N, E: the position reference of a restart (ALGORITHMS.md 8, GPS step 4); in
+                               fuzzy rows the position hold's anchor */
             float pv[3];  /**< fuzzy rows: the held fixes' N, E velocity less their position change,
                                summed, and the time it spans (ALGORITHMS.md 8, GPS step 3) */
         } step;
@@ -170,12 +171,14 @@ typedef struct {
     float grav_rows[6];
     float grav_r;
     float last_gps_t[3];
-    float pos_prev[2];       /**< N, E: the last fix's position (NaN: none; mca_nav.c, GPS step 4); in fuzzy rows
-                                  the last held fix's (the step test's position check, GPS step 3) */
+    float pos_prev[2];       /**< N, E: the last fix's position (NaN: none; mca_nav.c, GPS step 4) */
     float pos_jump[2];       /**< N, E: the fixes' position jumps summed since the CS started,
-                                  less what 5 tau_p forgot (GPS step 4) */
+                                  less what 5 tau_p forgot (GPS step 4); in fuzzy rows the position
+                                  hold's held step */
     uint32_t n_grav_obs;
     uint32_t n_grav_skip;
+    float pos_hold_s;        /**< fuzzy rows: how long the position hold has held (GPS step 4); in the
+                                  struct's tail padding, sizeof unchanged */
 } mca_nav_t;
 
 typedef struct {

@@ -18,7 +18,8 @@ in the modes other than fuzzy rows: no course observation), GPS step 1's velocit
 checks, GPS step 4's numerically failed axis update and its end of a position fault the CS took
 in with its position reference, ALGORITHMS.md 7's course gate and its guard, GPS step 3's aid of N and E
 once any yaw observation was made (session 26), the step test's held fixes' positions in fuzzy rows
-(session 27), and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
+(session 27), GPS step 4's position hold in fuzzy rows and section 5's rows applied beside the N/E pair's
+(session 28), and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
     ``init_still_s``, ``init_timeout_s``, ``cs_lag_s``, ``imu_dt_max_s``, the CS ``dt_max_s``
@@ -284,19 +285,78 @@ once any yaw observation was made (session 26), the step test's held fixes' posi
     1``) adds ``T (v_fix + v_last) / 2 - (p_fix - p_last)`` to ``e`` and ``T`` (this fix's interval, that
     of step 3's predict) to ``t_e``; every held fix, and no other, then sets ``p_last`` to its N and E
     position, step 3's ``ned`` (section 6, from home). A fix not held (the return, the first fix after a
-    hold, a fix the test does not run on) changes none of ``e``, ``t_e``, ``p_last``; ``e`` and ``t_e``
+    hold, a fix the test does not run on) changes neither ``e`` nor ``t_e``; ``e`` and ``t_e``
     are not cleared by a CS start or by the end of a hold either (only read while holding, and every
     hold's first fix restarts them). ``p_last`` is step 4's memory of the last position, ``z_prev``
-    (``_PosJumps``), which step 4's rule neither reads nor writes in fuzzy rows. Every CS start clears it
-    (``_cs_restart``), and that cannot matter: ``p_last`` is read only on a fix held after another held
-    fix (``h > 1``, so the fix before, ``h - 1``, was held and wrote it in its step 3), and no CS start
-    comes between: fix ``h - 1``'s own restarts after step 4 are step 3's end of a fault (only on a fix
-    the test judged the end, never a held one) and step 4's return (which does not run in fuzzy rows),
-    fix ``h``'s gap re-initialisation skips the test (fix ``h`` then not held), and home is the first
-    fix. So ``p_last`` is never NaN where read, and the model asks nothing of it. ``v_last`` is step 7's
+    (``_PosJumps``), which every fix sets in fuzzy rows (the position hold, choice 28, after these sums
+    have read it: the held fix's "sets ``p_last``" is that write) and every CS (re-)initialisation makes
+    NaN (``_cs_restart``). It is read only on a fix held after another held fix (``h > 1``), so it is
+    the fix before's position unless that fix restarted the CS: the position hold's restart (choice 28)
+    may fall on a fix the step test holds, and the next held fix then sums a NaN. The model lets it
+    propagate: ``e`` is NaN for the rest of that hold, so the positions no longer say the held step
+    (every comparison with NaN is false) until the next hold's first fix restarts the sum (the C core
+    does the same: a golden model that skipped the NaN term, or restarted the sum there, parted from it
+    in tests/python/test_nav_golden_vs_c.py, CAR_POS_BURST_RESTART_HELD). ``v_last`` is step 7's
     remembered velocity, the held fix ``h - 1``'s (step 7 is done on every fix past step 1, a numerical
     failure's too), which has N and E velocity (the test ran on it). A fix whose CS axis update fails
     numerically keeps what step 3 wrote (choice 22); a step 1 error changes nothing.
+28. The position hold (GPS step 4, session 28) and section 5's rows beside the N/E pair's, fuzzy rows only
+    (``cs_h``'s ``robust.mode`` fuzzy with ``fuzzy_reject`` 2; ``_PosHold``, ``_position_hold``,
+    ``_position_hold_after``).
+    Section 5: while alarmed, with no row past its own level (section 5's returns are past it, so with
+    only returns failing every row but the pair's is applied, as before) the update is rejected unless
+    the N/E pair has a row out of it (the other axis' plan, the velocity step test's velocity rows, the
+    position hold's position rows); then no other row goes out (the rows the last two updates left out
+    stay out only "while any row fails") and the rest are applied, every row out being a rejection as
+    before. The caller's rows ride in the memory (``RobustState.caller_out``, the spec's ``started``), set
+    by the hold before the update and cleared by it (and by the model after a failed one); they go out of
+    that update whether or not the N/E pair is
+    formed (a fix without N/E velocity, or N and E without the IMU-aided test: the C core does the same,
+    checked by hand with saturated IMU samples inside a held burst, the pair then unformed: a golden
+    model that set them only with the pair parted from it at the first such fix). A 1-row update (no N/E
+    velocity) held is rejected either way: its one row out is every row out, and alarmed with no row
+    failing and no pair's row it is rejected too.
+    The state: ``z_prev`` is ``_PosJumps``' (shared with choice 27's ``p_last``); the spec stores ``p_a``,
+    ``s_p`` and *anchor* in the position rule's ``p_ref``, ``J`` and *ref*, which that rule never touches
+    in fuzzy rows (choices 24, 25) and the hold never outside them, so the model keeps them apart, in
+    ``_PosHold``, with ``t_h`` and *holding*; every CS (re-)initialisation (home, a gap, step 3's end of a
+    fault, the hold's restart) starts it afresh, and ``z_prev`` NaN.
+    Before the update, on every fix past step 3 (a gap's re-initialisation skips it; aligned or not):
+    after step 3's test, its sums and the predict, ``d`` is choice 24's (the trapezoid of this fix's and
+    step 7's last N, E velocity, or ``p - p_0`` when either has none or the step test holds this fix after
+    the hold's first, ``n > 1`` after step 3), ``dz = z - z_prev`` (``z`` step 3's ``ned``), then ``z_prev =
+    z``; ``p_a``, ``e``, ``r`` only when aligned and *anchor*. "While *holding*" for ``t'`` is *holding* at
+    the fix's start. ``w^2`` is this fix's N/E position variance of step 4 (the receiver model's
+    ``min(h_acc, gps_pos_white_m)^2``, ``h_acc^2`` without it), ``V = 2 (w^2 + sigma_p^2 t' / tau_p)``;
+    ``g2``, ``g4`` the 2-DOF quantiles (``e . s_p`` is one number, but the spec's). The step back is
+    computed once, before the hold's decision, with the ``s_p`` the fix found (never when ``s_p = 0``,
+    *anchor* clear, not aligned, or ``dz`` not finite); the window ``| |r|^2 - 1.25 |s_p|^2 | <= |s_p|^2``
+    as written (``0.25 |s_p|^2 <= |r|^2 <= 2.25 |s_p|^2``). The guard reads N's position row's
+    ``n_removed`` (row 0) before this update against ``cs_h.robust.reject_reset_n`` (``<``: 0 makes the
+    significance the only way to stay held). Held: N's and E's ``caller_out`` of row 0 and ``D =
+    max(D, 2)``; released: *holding* and *anchor* clear, ``s_p`` and ``t_h`` kept, ``D = min(D, 1)`` on N
+    and E when the step test's ``n`` after step 3 is 0. These ``D`` changes come after the step test's (so
+    a hold of either alarms) and before the N/E pair's plans, as the step test's (choice 20).
+    After the update: "the update of N or E left its position row out" is N's or E's memory with
+    ``n_removed[0] > 0`` after step 4 (a rejection or a lock-up reset counts as the memory says: a reset
+    clears it; an axis whose update failed numerically keeps the memory it had, choice 22). The restart
+    is read first: a fix that stepped back (so aligned, with *anchor* at its start), whose *holding* was
+    clear at its start (a fix that steps back while holding only ends the hold, whatever its update did),
+    and whose N or E update left its position row out, restarts the CS after step 4 as step 3's end of a
+    fault does (choice 23: every axis at the fix, from the position reference never, since *ref* is never
+    set in fuzzy rows; memories, coasting marks and priors cleared, ``a_last`` 0, the step test's ``n`` as
+    it is; steps 5-6 skipped, step 7 done as after an update, choice 24's anchor rule). Any restart of the
+    fix (this one, or step 3's end of a fault the CS took in) skips the part after the update. Otherwise,
+    aligned and not *holding* (after the decision: a fix released this time is not holding): a fix that
+    stepped back sets ``s_p = 0``; then ``j = z - p_a`` (``p_a`` as carried before the update; *anchor* as
+    the decision left it) and the onset when *anchor*, the position row out, ``|j|^2 > g4 V`` (``V`` of
+    this fix, ``t' = T``) and no step back: *holding*, ``s_p = j``, ``t_h = 0``; otherwise ``p_a = z``,
+    *anchor* set (so a released fix, or any fix not holding, re-anchors at itself). A step 1 error, or an
+    input check of step 4, leaves all of it as it was.
+    Checked against the C core (tests/python/test_nav_golden_vs_c.py): with section 5's rule before session
+    28 the model parts from it on 11 of the 12 fuzzy-rows cases of before; *holding* at the fix's start for
+    the restart, against *holding* read after the decision (CAR_POS_VEL_DRIFT: that reading restarts the CS
+    at the burst's end, which steps back while holding, and parts from the C at the fix after it).
 """
 
 from __future__ import annotations
@@ -381,6 +441,10 @@ STEP_LEVEL_HELD = 0.005  # ... chi2_2(this) while fixes are held
 STEP_HOLD_MAX_US = 20_000_000  # ... the guard of the modes other than fuzzy rows: n T < 20 s (integer us)
 POS_RETURN_LEVEL = 1e-4  # GPS step 4, the end of a position fault the CS took in: chi2_1(this)
 POS_JUMP_FORGET = 5.0  # ... the sum of the jumps decays over this many tau_p
+HOLD_LEVEL_STEP = 0.005  # GPS step 4, the position hold (fuzzy rows): g2 = chi2_2(this), the step's level
+HOLD_LEVEL_WANDER = 1e-4  # ... g4 = chi2_2(this): the onset and the held step within the receiver's wander
+HOLD_D_HELD = 2.0  # ... a held fix's N and E detectors take D = max(D, this): they alarm
+HOLD_D_RELEASE = 1.0  # ... a release with the step test holding nothing: D = min(D, this)
 COG_GATE_LEVEL = 1e-4  # ALGORITHMS.md 7, the course gate: nu^2 > chi2_1(this) (P[2][2] + sigma^2) refuses
 COG_MISSED_MAX = 10  # ... n_cog, the course observations not taken in a row, stays at this; the guard's count
 COG_GUARD_US = 30_000_000  # ... the guard: no yaw observation taken for more than this (IMU time, us)
@@ -638,6 +702,30 @@ class _PosJumps:
     ref: bool = False
 
 
+@dataclass
+class _PosHold:
+    """The position hold (ALGORITHMS.md 8, GPS step 4, session 28; fuzzy rows, choice 28): N and E's anchor
+    ``p_a`` carried on by the fixes' ``d``, the held step ``s_p``, the hold's time ``t_h`` and the flags
+    *anchor* (``p_a`` exists) and *holding*; ``z_prev`` is ``_PosJumps``'. Every CS (re-)initialisation
+    starts it afresh (``_cs_restart``)."""
+
+    p_a: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    s_p: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    t_h: float = 0.0
+    anchor: bool = False
+    holding: bool = False
+
+
+class _HoldFix(NamedTuple):
+    """What the position hold found on a fix before its update (choice 28), for after it."""
+
+    ran: bool  # fuzzy rows: the rule ran on this fix
+    stepped_back: bool  # the fix steps back (aligned and *anchor* at its start)
+    was_holding: bool  # *holding* at the fix's start
+    z: np.ndarray  # the fix's N and E position
+    V: float  # the receiver's position error over t', 2 (w^2 + sigma_p^2 t' / tau_p)
+
+
 class _PosRule(NamedTuple):
     """What GPS step 4's position rule found on a fix, before the update (choices 24, 25)."""
 
@@ -785,6 +873,7 @@ class Nav:
         self.t_flag_us: int | None = None
         self.vst = _StepTest()
         self.jumps = _PosJumps()
+        self.hold = _PosHold()
 
     # ----------------------------------------------------------------------------------
     # IMU step
@@ -1097,7 +1186,7 @@ class Nav:
         masks = (MASK_POS | vel_mask, MASK_POS | vel_mask, d_mask)
         r_h = _white(fx.h_acc, self.cfg.gps_pos_white_m) ** 2
         r_p = (r_h, r_h, _white(fx.v_acc, self.cfg.gps_alt_white_m) ** 2)
-        saved = copy.deepcopy((self.cs, self.vst, self.jumps))
+        saved = copy.deepcopy((self.cs, self.vst, self.jumps, self.hold))
         p_0 = [float(ax.x[0]) for ax in self.cs.axes[:2]]  # N, E positions before the predict
         try:
             # Step 3's velocity step test (it may hold the fix; in fuzzy rows move the N, E detectors'
@@ -1111,6 +1200,10 @@ class Nav:
             rule = self._position_return(
                 ned, T, r_h, p_0, fx.vel[:2] if has_ne else None, predicted=self.vst.n > 1
             )
+            # GPS step 4's position hold (fuzzy rows, choice 28): its anchor carried on by the same d, the
+            # hold or its release before the update (a held fix's N and E position rows go out)
+            v_ne = fx.vel[:2] if has_ne else None
+            hf = self._position_hold(ned, T, r_h, p_0, v_ne, predicted=self.vst.n > 1)
             # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5); its inputs were bounded at
             # step 1, so only an axis update failing numerically (SINGULAR, NONFINITE) is an error here.
             reports, failures = self.cs.update_robust_partial(
@@ -1122,8 +1215,10 @@ class Nav:
                 vel_held=held and self._step_test_rows(),  # the other modes: the hold changes no update
             )
         except McaError:
-            self.cs, self.vst, self.jumps = saved
+            self.cs, self.vst, self.jumps, self.hold = saved
             raise
+        for ax in self.cs.axes[:2]:  # the caller's rows were this update's (a failed axis' too)
+            ax.mem.caller_out = [False] * len(ax.mem.caller_out)
         # The reported T is the tested one (GPS step 3, section 5); an axis whose update failed reports
         # its last successful update's since the CS (re)started, NaN if none (choice 22).
         for i, rep in enumerate(reports):
@@ -1139,7 +1234,11 @@ class Nav:
         # GPS step 4, the end of a position fault the CS took in: N or E returned (choice 24), the same
         # restart.
         vel_end = self.vst.ended and any(self._flags_end(i, reports[i], masks[i]) for i in (0, 1))
-        restart = vel_end or rule.returned
+        # GPS step 4, the position hold's restart: a fix that steps back while not holding, whose update of
+        # N or E left its position row out (choice 28)
+        pos_out = any(ax.mem.n_removed[0] > 0 for ax in self.cs.axes[:2])
+        hold_end = hf.stepped_back and not hf.was_holding and pos_out
+        restart = vel_end or rule.returned or hold_end
         # GPS step 6's flag of this fix (its N and E updates, read before any restart clears their marks)
         flagged = any(self._flags_fix(i, reports[i], masks[i]) for i in (0, 1))
         if restart:
@@ -1149,6 +1248,8 @@ class Nav:
             # a quiet fix: the position reference is the CS position after the update (choice 25)
             self.jumps.p_ref = np.array([float(ax.x[0]) for ax in self.cs.axes[:2]])
             self.jumps.ref = True
+        if not restart:  # the position hold after the update: the onset, or the anchor at this fix
+            self._position_hold_after(hf, pos_out)
         if failure is not None or restart:
             # GPS step 4: the failed axes stay as predicted, the others updated; the CS was predicted
             # to the fix all the same, so step 7 is done (the next fix predicts from this one); steps
@@ -1208,9 +1309,11 @@ class Nav:
     def _cs_restart(self, ned: np.ndarray, v0: tuple[float, ...], from_ref: bool = False) -> None:
         """A CS (re-)initialisation at the fix's position ``ned`` and velocity ``v0`` (GPS step 2 at home;
         step 3 after a gap longer than ``dt_max`` and at the end of a fault the CS took in; step 4 at the
-        end of a position fault the CS took in): the axes start afresh (robust memories, coasting marks
-        and priors cleared, choice 17), the compensation acceleration (``a_last``) is 0, and the N and E
-        jump memory is cleared (``z_prev`` NaN, ``J = 0``, the position reference's *ref* clear). With
+        end of a position fault the CS took in, and at the position hold's restart): the axes start afresh
+        (robust memories, coasting marks and priors cleared, choice 17), the compensation acceleration
+        (``a_last``) is 0, and the N and E jump memory is cleared (``z_prev`` NaN, ``J = 0``, the position
+        reference's *ref* clear), as is the position hold's (``s_p = 0``, *anchor* and *holding* clear,
+        choice 28). With
         ``from_ref`` (an end of a fault whose fix has *ref* set and both N and E near ``p_ref``, choice
         25) N and E start at ``p_ref`` with position variance ``sigma_p_m^2`` in place of ``p0_var_m2``;
         D, the velocities and the rest as at the fix. The velocity step test's ``n`` is left as it is
@@ -1225,6 +1328,7 @@ class Nav:
         self.cs_T_set = [False, False, False]
         self.a_last = (0.0, 0.0, 0.0)
         self.jumps = _PosJumps()
+        self.hold = _PosHold()
 
     def _position_return(
         self,
@@ -1302,6 +1406,105 @@ class Nav:
         none_pending = not any(pending_ax)
         returned = any((jmp or none_pending) and off for jmp, off in zip(jumped_ax, off_ax, strict=True))
         return _PosRule(returned, near and ran == 2, calm and ran == 2)
+
+    def _position_hold(
+        self,
+        ned: np.ndarray,
+        T: float,
+        w2: float,
+        p_0: list[float],
+        v_ne: tuple[float, ...] | None,
+        predicted: bool,
+    ) -> _HoldFix:
+        """ALGORITHMS.md 8, GPS step 4, "The position hold" (session 28, choice 28), before the update: in
+        fuzzy rows, on N and E, after step 3's predict and the step test's sums (which read ``z_prev`` as
+        ``p_last``), with ``d`` the position rule's (the trapezoid of this fix's and the last fix's N, E
+        velocities, or the predicted change ``p - p_0`` without them or when ``predicted``, a fix the step
+        test holds after the hold's first) and ``dz = z - z_prev``: ``z_prev = z``; when aligned and
+        *anchor*, ``p_a += d``, ``e = z - p_a``, ``r = dz - d``. With ``t' = t_h + T`` while *holding* (``T``
+        otherwise) and ``V = 2 (w^2 + sigma_p^2 t' / tau_p)`` (``w2`` this fix's N/E position variance
+        after the receiver model; ``sigma_p``, ``tau_p`` of ``cs_h``), the fix *steps back* when ``r . s_p <
+        0``, ``(r . s_p)^2 >= 0.5 |r|^2 |s_p|^2`` and ``| |r|^2 - 1.25 |s_p|^2 | <= |s_p|^2`` (aligned,
+        *anchor*, ``s_p != 0`` and ``z_prev`` not NaN). Aligned, *anchor* and *holding*: ``t_h = t'``, and
+        the fix stays held when it does not step back, ``2 e . s_p >= |s_p|^2``, ``|e - s_p|^2 <= g4 V``
+        and either N's position row was left out by fewer than ``reject_reset_n`` updates in a row (N's
+        memory before the update) or ``(e . s_p)^2 > g2 |s_p|^2 V``: N's and E's position rows then go out
+        of their updates (the memories' ``caller_out``, the N/E pair's rows) and their detectors take ``D =
+        max(D, 2)``; otherwise the hold ends (*holding* and *anchor* clear, ``s_p`` kept) and, when the
+        step test holds nothing (``n = 0`` after step 3), ``D = min(D, 1)``. Returns what the part after
+        the update needs; a mode other than fuzzy rows changes nothing (``ran`` False)."""
+        if not self._step_test_rows():
+            return _HoldFix(False, False, False, np.zeros(2), 0.0)
+        h, cfg_h = self.hold, self.cfg.cs_h
+        n_ax, e_ax = self.cs.axes[0], self.cs.axes[1]
+        z = np.array([float(ned[0]), float(ned[1])])
+        v_prev = self.prev_vel[:2] if self.prev_has_vel[0] else None
+        if not predicted and v_ne is not None and v_prev is not None:  # the fixes' velocities (trapezoid)
+            d = T * (np.array(v_ne[:2], dtype=np.float64) + np.array(v_prev, dtype=np.float64)) / 2.0
+        else:  # either fix without N/E velocity, or held after the hold's first: the predicted change
+            d = np.array([float(ax.x[0]) - p_0[i] for i, ax in enumerate((n_ax, e_ax))])
+        dz = z - self.jumps.z_prev  # NaN after a CS (re-)initialisation
+        self.jumps.z_prev = z.copy()
+        was_holding = h.holding
+        active = self.aligned and h.anchor
+        e = r = np.zeros(2)
+        if active:
+            h.p_a = h.p_a + d
+            e = z - h.p_a
+            r = dz - d  # this fix's jump
+        t1 = h.t_h + T if h.holding else T
+        V = 2.0 * (w2 + cfg_h.sigma_p_m**2 * t1 / cfg_h.tau_p_s)  # the receiver's position error over t'
+        sp2 = float(h.s_p @ h.s_p)
+        stepped_back = False
+        if active and sp2 > 0.0 and bool(np.all(np.isfinite(dz))):
+            rs, rr = float(r @ h.s_p), float(r @ r)
+            stepped_back = rs < 0.0 and rs * rs >= 0.5 * rr * sp2 and abs(rr - 1.25 * sp2) <= sp2
+        if active and h.holding:
+            h.t_h = t1
+            es = float(e @ h.s_p)
+            de = e - h.s_p
+            # the guard: N's position row out by fewer than cs_h's whole-update guard of updates in a row
+            guard_open = n_ax.mem.n_removed[0] < cfg_h.robust.reject_reset_n
+            significant = es * es > chi2_quantile(HOLD_LEVEL_STEP, 2) * sp2 * V  # beyond the wander
+            stays = (
+                not stepped_back
+                and 2.0 * es >= sp2  # nearer the held step than the anchor
+                and float(de @ de) <= chi2_quantile(HOLD_LEVEL_WANDER, 2) * V  # still the held step
+                and (guard_open or significant)
+            )
+            if stays:  # held: the position rows out with the pair's, and the alarm
+                for ax in (n_ax, e_ax):
+                    ax.mem.caller_out[0] = True
+                    ax.mem.d_k = max(ax.mem.d_k, HOLD_D_HELD)
+            else:  # the hold ends; s_p stays (the step may still be in)
+                h.holding = h.anchor = False
+                if self.vst.n == 0:
+                    for ax in (n_ax, e_ax):
+                        ax.mem.d_k = min(ax.mem.d_k, HOLD_D_RELEASE)
+        return _HoldFix(True, stepped_back, was_holding, z, V)
+
+    def _position_hold_after(self, hf: _HoldFix, pos_out: bool) -> None:
+        """ALGORITHMS.md 8, GPS step 4, the position hold after the update (choice 28), on a fix the CS did
+        not restart on, aligned and not *holding*: a fix that steps back sets ``s_p = 0``; then, with ``j =
+        z - p_a``, when *anchor* is set, ``pos_out`` (the update of N or E left its position row out: the
+        memory's ``n_removed`` of the position row > 0 after it), ``|j|^2 > g4 V`` and the fix did not step
+        back, the hold starts (*holding*, ``s_p = j``, ``t_h = 0``); otherwise ``p_a = z`` and *anchor*."""
+        h = self.hold
+        if not (hf.ran and self.aligned) or h.holding:
+            return
+        if hf.stepped_back:
+            h.s_p = np.zeros(2)
+        j = hf.z - h.p_a
+        onset = (
+            h.anchor
+            and pos_out
+            and float(j @ j) > chi2_quantile(HOLD_LEVEL_WANDER, 2) * hf.V
+            and not hf.stepped_back
+        )
+        if onset:
+            h.holding, h.s_p, h.t_h = True, j, 0.0
+        else:
+            h.p_a, h.anchor = hf.z.copy(), True
 
     def _step7(
         self,
@@ -1435,11 +1638,12 @@ class Nav:
         """After the velocity step test, in fuzzy rows (choice 27), a fix the test held (``h = n > 0``
         after it): the hold's first (``h = 1``) sets ``vst.e = 0``, ``vst.t_e = 0`` and adds nothing; each
         one after it (``h > 1``) adds ``T (v_fix + v_last) / 2 - (p_fix - p_last)`` to ``vst.e`` and ``T``
-        to ``vst.t_e``; every one sets ``p_last`` to its N and E position (step 3's ``ned``). A fix not
-        held changes none of them. ``p_last`` is GPS step 4's memory of the last position,
-        ``jumps.z_prev`` (which step 4's rule neither reads nor writes in fuzzy rows); ``v_last`` the
-        last fix's velocity (step 7's ``prev_vel``). On ``h > 1`` both are the held fix before's: it had
-        N and E velocity (a held fix has), and no CS start came between (see choice 27)."""
+        to ``vst.t_e``. A fix not held changes neither. ``p_last`` is GPS step 4's memory of the last
+        position, ``jumps.z_prev``, which the position hold sets to this fix's N and E position (step 3's
+        ``ned``) after these sums on every fix (choice 28: a held fix's "sets ``p_last``"); ``v_last`` the
+        last fix's velocity (step 7's ``prev_vel``). On ``h > 1`` both are the held fix before's (it had N
+        and E velocity: a held fix has), but ``p_last`` is NaN when that fix restarted the CS (the position
+        hold's restart): the NaN propagates into ``vst.e`` for the rest of the hold (choice 27)."""
         if not (held and self._step_test_rows()):
             return
         st = self.vst
@@ -1450,7 +1654,6 @@ class Nav:
             v_fix, v_last = np.array(fx.vel[:2]), np.array(self.prev_vel[:2])
             st.e = st.e + (T * (v_fix + v_last) / 2.0 - (p_fix - self.jumps.z_prev))
             st.t_e += T
-        self.jumps.z_prev = p_fix
 
     def _step_test_rows(self) -> bool:
         """The horizontal CS configuration is fuzzy rows (``fuzzy`` with ``fuzzy_reject`` 2): the velocity

@@ -243,7 +243,10 @@ class RobustState:
     the fuzzy mode nu_mean holds the last tested innovation (fuzzy rows' return rule);
     q_scale: the AKF process-noise scale the filter applies at its next predict;
     d_k: the fuzzy detector's smoothed statistic D; alarm: the fuzzy alarm;
-    started: the AKF row statistics have seen their first update.
+    started: the AKF row statistics have seen their first update;
+    caller_out: fuzzy rows, per row: the caller's rows (ALGORITHMS.md 5, the N/E pair: the spec's
+    memory ``started``, unused by the fuzzy modes), out of the next update with the pair's and whatever
+    its alarm; that update clears them (the navigation filter's position hold, ALGORITHMS.md 8 GPS step 4).
     """
 
     win: list[float] = field(default_factory=list)
@@ -255,6 +258,7 @@ class RobustState:
     started: bool = False
     n_reject: int = 0  # updates rejected in a row (lock-up guard)
     n_removed: list[int] = field(default_factory=lambda: [0] * M_MAX)  # per row: removed in a row
+    caller_out: list[bool] = field(default_factory=lambda: [False] * M_MAX)  # fuzzy rows: the caller's rows
 
 
 @dataclass(frozen=True)
@@ -662,7 +666,7 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
     memory.nu_mean[: step.m] = step.nu_test  # the last tested innovation (read by fuzzy rows)
     pair = step.pair_out if rows and step.pair_out is not None else (False,) * step.m
     if rows and memory.alarm:
-        out = _fuzzy_rows_out(step, memory, nu_prev if onset else None)
+        out = _fuzzy_rows_out(step, memory, nu_prev if onset else None, paired=any(pair))
         return _rows_update(step, [o or p for o, p in zip(out, pair, strict=True)], alarm=True)
     if rows:
         out = [g or p for g, p in zip(_fuzzy_rows_gated(step), pair, strict=True)]
@@ -679,13 +683,18 @@ def _update_fuzzy(step: _Step, cfg: RobustConfig, memory: RobustState) -> _Resul
     return x, P, _outcome(step.m, factor=gamma, detected=True, alarm=True)
 
 
-def _fuzzy_rows_out(step: _Step, memory: RobustState, nu_prev: np.ndarray | None) -> list[bool]:
+def _fuzzy_rows_out(
+    step: _Step, memory: RobustState, nu_prev: np.ndarray | None, paired: bool = False
+) -> list[bool]:
     """The rows fuzzy rows leaves out while alarmed (ALGORITHMS.md 5): a row fails when its own
     standardised test residual, nu_t,i^2 / C_t,ii, exceeds chi2_1(0.005) (2 chi2_1(1e-4) for the
     last row standing, see ``_fuzzy_row_tests``); while any row fails, the
     rows the last two updates left out (rejected, or removed) stay out too: one failure by chance
     (0.5 % of clean rows) does not keep a row out. No row failing leaves every row out (the
-    joint test alone singles out none).
+    joint test alone singles out none), unless the N/E pair has rows out of this update (``paired``;
+    the caller adds them to these): then none more, and the rows neither failing nor paired are
+    applied (session 28: the position hold of ALGORITHMS.md 8, GPS step 4, puts the position rows out
+    while they pass their own test, and the velocity stays in).
 
     ``nu_prev``: at the alarm's first epoch after an applied epoch past TD2 (D_{k-1} >= 0.5), that
     epoch's tested innovation; a row whose innovation has the opposite sign, and is no larger, is
@@ -694,7 +703,7 @@ def _fuzzy_rows_out(step: _Step, memory: RobustState, nu_prev: np.ndarray | None
     m = step.m
     fails, bad = _fuzzy_row_tests(step.nu_test, step.C_test, nu_prev, memory.n_removed)
     if not any(fails):
-        return [True] * m
+        return [not paired] * m
     if any(bad):
         # n_removed counts the updates in a row that left row i out (a rejection leaves every row out)
         were_out = [memory.n_removed[i] > 1 for i in range(m)]
@@ -829,6 +838,7 @@ def _working_copy(state: RobustState) -> RobustState:
         started=bool(state.started),
         n_reject=int(state.n_reject),  # read by fuzzy rows; the guard below counts on from the caller's
         n_removed=[int(v) for v in state.n_removed],
+        caller_out=[bool(v) for v in state.caller_out],
     )
     if not _memory_is_finite(memory):
         raise NonFiniteError("robust state is not finite")
@@ -858,7 +868,10 @@ def robust_update(
     """Measurement update in the mode ``cfg.mode`` (ALGORITHMS.md 5).
 
     ``pair_out`` (fuzzy rows only; m flags): rows this update leaves out whatever its alarm, the
-    paired horizontal axis' failing rows (``fuzzy_rows_failed``; ALGORITHMS.md 5, the N/E pair).
+    paired horizontal axis' failing rows (``fuzzy_rows_failed``; ALGORITHMS.md 5, the N/E pair), to
+    which the memory's ``caller_out`` rows are added (the caller's rows; the update clears them). While
+    alarmed with no row failing, any such row out applies the rows neither failing nor paired instead of
+    rejecting the update (session 28).
 
     ``test = (nu_t, C_t)``: the mode tests this innovation and covariance (incl. R) instead of
     the update's own (ALGORITHMS.md 5, test innovation): T, IGG-III residuals and AKF row
@@ -899,6 +912,14 @@ def robust_update(
         C_t, T = _test_statistic(nu_t, C_t)
     if pair_out is not None and len(pair_out) != nu.size:
         raise BadArgError(f"pair_out has {len(pair_out)} rows, the update {nu.size}")
+    if len(memory.caller_out) != M_MAX:
+        raise BadArgError(f"state.caller_out must have {M_MAX} entries")
+    pair = None if pair_out is None else tuple(bool(v) for v in pair_out)
+    if cfg.mode == "fuzzy" and cfg.fuzzy_reject == FUZZY_ROWS and any(memory.caller_out[: nu.size]):
+        # the caller's rows go out with the pair's: the memory carries them into this update (ALGORITHMS.md 5)
+        caller = tuple(memory.caller_out[: nu.size])
+        pair = caller if pair is None else tuple(a or b for a, b in zip(pair, caller, strict=True))
+    memory.caller_out = [False] * M_MAX  # this update clears them
     step = _Step(
         x=x,
         P=P,
@@ -909,7 +930,7 @@ def robust_update(
         T=T,
         nu_test=nu_t,
         C_test=C_t,
-        pair_out=None if pair_out is None else tuple(bool(v) for v in pair_out),
+        pair_out=pair,
     )
     with np.errstate(over="ignore", invalid="ignore"):  # every result is checked for finiteness
         x_plus, P_plus, outcome = _MODE_UPDATES[cfg.mode](step, cfg, memory)
@@ -951,6 +972,7 @@ def robust_update(
         memory.n_reject,
     )
     state.n_removed = list(memory.n_removed)
+    state.caller_out = list(memory.caller_out)
     return (
         x_plus,
         P_plus,
