@@ -813,6 +813,32 @@ def _alarms_at_fixes(rec: Recording, cfg: object) -> tuple[dict[str, np.ndarray]
     return run, (run["flags"][at_fix] & bits) != 0
 
 
+Run = dict[str, np.ndarray]  # a C replay's output columns
+
+
+def _fuzzy_rows_fault(
+    name: str,
+    preset: str,
+    seed: int,
+    duration_s: float,
+    fault: tuple[float, float, tuple[float, float], tuple[float, float]],
+    after: tuple[float, float],
+) -> tuple[Recording, Run, np.ndarray, Run, np.ndarray, np.ndarray, np.ndarray]:
+    """A simulated flight with one constant horizontal GNSS fault (t0, t1, position offset, velocity
+    offset: ``_with_gnss_fault``) replayed by the C in the fuzzy-rows profile with the simulator's
+    receiver modelled: the clean recording, the outlier-free run and its N/E alarms at each fix, the
+    faulty run and its alarms, the fault's fixes and the fixes of [after) s."""
+    res = scenario(name, seed=seed, duration_s=duration_s)
+    rec = res.recording
+    bad, sel = _with_gnss_fault(rec, *fault)
+    t_s = rec.gnss["t_us"] * 1e-6
+    profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
+    cfg = core.nav_config(preset, **{**profile, **_sim_receiver_model(res.params)})
+    clean, clean_alarm = _alarms_at_fixes(rec, cfg)
+    run, alarm = _alarms_at_fixes(bad, cfg)
+    return rec, clean, clean_alarm, run, alarm, sel, (t_s >= after[0]) & (t_s < after[1])
+
+
 def test_velocity_step_test_holds_a_small_burst_to_its_end() -> None:
     """ALGORITHMS.md 8, GPS step 3, while holding: an 18 s velocity-only burst of 1.0 m/s on the
     simulated car stays alarmed to its end (measured: every fix) and is released at its first
@@ -820,15 +846,9 @@ def test_velocity_step_test_holds_a_small_burst_to_its_end() -> None:
     variance, grown by the attitude terms, let the burst pass after about 6 s:
     59 % of its fixes alarmed, and the fused velocity followed it 1.20 m/s off the outlier-free
     run (now 0.94, the coast's)."""
-    res = scenario("car_accel_brake", seed=4, duration_s=260.0)
-    rec = res.recording
-    bad, sel = _with_gnss_fault(rec, 150.0, 168.0, (0.0, 0.0), (0.6, -0.8))
-    t_s = rec.gnss["t_us"] * 1e-6
-    after = (t_s >= 168.2) & (t_s < 185.0)
-    profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
-    cfg = core.nav_config("ground", **{**profile, **_sim_receiver_model(res.params)})
-    clean, clean_alarm = _alarms_at_fixes(rec, cfg)
-    run, alarm = _alarms_at_fixes(bad, cfg)
+    rec, clean, clean_alarm, run, alarm, sel, after = _fuzzy_rows_fault(
+        "car_accel_brake", "ground", 4, 260.0, (150.0, 168.0, (0.0, 0.0), (0.6, -0.8)), (168.2, 185.0)
+    )
     at_fix = _fix_rows(run, rec.gnss)
     dv = run["vel_ned_mps"][at_fix, :2].astype(np.float64) - clean["vel_ned_mps"][at_fix, :2]
     print(alarm[sel].mean(), alarm[after].sum(), np.hypot(dv[:, 0], dv[:, 1])[sel].max())
@@ -849,15 +869,9 @@ def test_velocity_step_test_holds_a_burst_the_anchor_drifts_toward(name: str, pr
     alarmed, 23 % of the fixed-wing's. The fixes' positions do not drift with it: their velocities
     less their positions' change still say the held step, and every fix of the burst stays
     alarmed, released within a fix of its end. The outlier-free runs raise no alarm."""
-    res = scenario(name, seed=1, duration_s=440.0)
-    rec = res.recording
-    bad, sel = _with_gnss_fault(rec, 404.4, 424.1, (0.0, 0.0), (-0.04, -1.1))
-    t_s = rec.gnss["t_us"] * 1e-6
-    after = (t_s >= 424.1) & (t_s < 439.0)
-    profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
-    cfg = core.nav_config(preset, **{**profile, **_sim_receiver_model(res.params)})
-    _, clean_alarm = _alarms_at_fixes(rec, cfg)
-    _, alarm = _alarms_at_fixes(bad, cfg)
+    _, _, clean_alarm, _, alarm, sel, after = _fuzzy_rows_fault(
+        name, preset, 1, 440.0, (404.4, 424.1, (0.0, 0.0), (-0.04, -1.1)), (424.1, 439.0)
+    )
     print(alarm[sel].mean(), alarm[after].sum())
     assert alarm[sel].all()
     assert alarm[after].sum() <= 1
@@ -899,15 +913,9 @@ def test_position_hold_keeps_a_small_position_burst_out_to_its_end(name: str, pr
     carried on by the fixes' velocities, every fix after the first (whose own update starts the
     hold) alarms, none after the burst, and the position stays within 0.5 m (measured 0.42). The
     outlier-free runs raise no alarm."""
-    res = scenario(name, seed=3, duration_s=130.0)
-    rec = res.recording
-    bad, sel = _with_gnss_fault(rec, 90.0, 108.0, (3.7, -3.9), (0.0, 0.0))
-    t_s = rec.gnss["t_us"] * 1e-6
-    after = (t_s >= 108.0) & (t_s < 123.0)
-    profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
-    cfg = core.nav_config(preset, **{**profile, **_sim_receiver_model(res.params)})
-    clean, clean_alarm = _alarms_at_fixes(rec, cfg)
-    run, alarm = _alarms_at_fixes(bad, cfg)
+    rec, clean, clean_alarm, run, alarm, sel, after = _fuzzy_rows_fault(
+        name, preset, 3, 130.0, (90.0, 108.0, (3.7, -3.9), (0.0, 0.0)), (108.0, 123.0)
+    )
     at_fix = _fix_rows(run, rec.gnss)
     dp = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
     off = np.hypot(dp[:, 0], dp[:, 1])[sel | after].max()
