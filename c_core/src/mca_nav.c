@@ -440,8 +440,17 @@ static inline int fuzzy_rows(const mca_robust_config_t *rc)
 
 /* mca_nav_t.step_flags; PRE: the step test ran on the last fix (so u.step.pre is its); RET: this
  * fix restarts the CS, the end of a fault it took in (set by gps_cs: GPS steps 3 and 4); REF:
- * u.step.ref holds the position reference (aligned only, set by gps_cs: GPS step 4) */
-enum { STEP_ANCHOR = 1u, STEP_ARMED = 2u, STEP_TESTED = 4u, STEP_PRE = 8u, STEP_RET = 16u, STEP_REF = 32u, STEP_PHOLD = 64u };
+ * u.step.ref holds the position reference, in fuzzy rows the position hold's anchor (aligned only,
+ * set by gps_cs: GPS step 4); PHOLD: fuzzy rows' position hold holds (GPS step 4) */
+enum {
+    STEP_ANCHOR = 1u,
+    STEP_ARMED = 2u,
+    STEP_TESTED = 4u,
+    STEP_PRE = 8u,
+    STEP_RET = 16u,
+    STEP_REF = 32u,
+    STEP_PHOLD = 64u
+};
 
 /* The fuzzy memories' D of N and E raised to at least v (up) or lowered to at most v. */
 MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
@@ -920,7 +929,8 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
         const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
         /* on a fix the step test holds after its first the fixes' velocity has the fault: the
          * CS's predicted change, as without velocities */
-        d[i] = vv && held < 2u ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i]) : nav->cs.axis[i].x[0] - x0[i];
+        d[i] = vv && held < 2u ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i])
+                               : nav->cs.axis[i].x[0] - x0[i];
         if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !rows) {
             const int b = pos_return(nav, i, ned[i], rp[i], d[i], t);
             pos |= b;
@@ -1132,8 +1142,8 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                                                      (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) == 0u);
         mca_copyf(nav->u.step.v, fv.vel_ned_mps, 2u);
         nav->u.step.var = fv.s_acc_mps * fv.s_acc_mps;
-        nav->step_flags = (uint8_t)((nav->step_flags & (STEP_ARMED | STEP_REF | STEP_PHOLD)) | (ok ? STEP_ANCHOR : 0u) |
-                                    ((nav->step_flags & STEP_TESTED) != 0u ? STEP_PRE : 0u));
+        nav->step_flags = (uint8_t)((nav->step_flags & (STEP_ARMED | STEP_REF | STEP_PHOLD)) |
+                                    (ok ? STEP_ANCHOR : 0u) | ((nav->step_flags & STEP_TESTED) != 0u ? STEP_PRE : 0u));
     }
     nav->prev_vel_mask = fv.vel_mask;
     return st;
