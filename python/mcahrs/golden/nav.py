@@ -1367,8 +1367,7 @@ class Nav:
         near = use_ref
         calm = True
         ran = 0
-        # the trapezoid needs N/E velocity on both fixes: this one and the last one step 7 remembered
-        v_prev = self.prev_vel[:2] if self.prev_has_vel[0] else None
+        motion = self._fix_motion(T, p_0, v_ne, predicted)
         # per axis: this fix's j was a jump, a position fault is pending, and the CS is materially off
         # the fix with J within half of that (nu^2 > B and 4 J^2 <= nu^2)
         jumped_ax: list[bool] = []
@@ -1380,10 +1379,7 @@ class Nav:
                 continue
             z, p = float(ned[i]), float(ax.x[0])
             material = k * (c.sigma_p_m**2 + r_p)  # beyond what the receiver's own wandering explains
-            if not predicted and v_ne is not None and v_prev is not None:  # the fixes' velocities say
-                d = T * (float(v_ne[i]) + float(v_prev[i])) / 2.0  # (trapezoid)
-            else:  # either fix without N/E velocity, or held after the hold's first: the predicted change
-                d = p - p_0[i]
+            d = float(motion[i])
             j = (z - mem.z_prev[i]) - d  # NaN after a (re-)initialisation: no jump
             # beyond two fixes' white error; a quarter of the material bound always is a jump
             jumped = not math.isnan(j) and j * j > min(2.0 * k * r_p, material / 4.0)
@@ -1406,6 +1402,19 @@ class Nav:
         none_pending = not any(pending_ax)
         returned = any((jmp or none_pending) and off for jmp, off in zip(jumped_ax, off_ax, strict=True))
         return _PosRule(returned, near and ran == 2, calm and ran == 2)
+
+    def _fix_motion(
+        self, T: float, p_0: list[float], v_ne: tuple[float, ...] | None, predicted: bool
+    ) -> np.ndarray:
+        """GPS step 4's ``d`` of N and E, what the position return rule and the position hold carry the
+        fixes on by: the trapezoid ``T (v + v_prev) / 2`` of this fix's N, E velocity ``v_ne`` and the last
+        fix's (step 7 remembered it), or the CS's predicted change ``p - p_0`` when either fix has no N/E
+        velocity or ``predicted`` (a fix the velocity step test holds after the hold's first: its velocity
+        carries the fault)."""
+        v_prev = self.prev_vel[:2] if self.prev_has_vel[0] else None
+        if not predicted and v_ne is not None and v_prev is not None:
+            return T * (np.array(v_ne[:2], dtype=np.float64) + np.array(v_prev, dtype=np.float64)) / 2.0
+        return np.array([float(ax.x[0]) - p_0[i] for i, ax in enumerate(self.cs.axes[:2])])
 
     def _position_hold(
         self,
@@ -1438,11 +1447,7 @@ class Nav:
         h, cfg_h = self.hold, self.cfg.cs_h
         n_ax, e_ax = self.cs.axes[0], self.cs.axes[1]
         z = np.array([float(ned[0]), float(ned[1])])
-        v_prev = self.prev_vel[:2] if self.prev_has_vel[0] else None
-        if not predicted and v_ne is not None and v_prev is not None:  # the fixes' velocities (trapezoid)
-            d = T * (np.array(v_ne[:2], dtype=np.float64) + np.array(v_prev, dtype=np.float64)) / 2.0
-        else:  # either fix without N/E velocity, or held after the hold's first: the predicted change
-            d = np.array([float(ax.x[0]) - p_0[i] for i, ax in enumerate((n_ax, e_ax))])
+        d = self._fix_motion(T, p_0, v_ne, predicted)
         dz = z - self.jumps.z_prev  # NaN after a CS (re-)initialisation
         self.jumps.z_prev = z.copy()
         was_holding = h.holding
