@@ -19,7 +19,8 @@ checks, GPS step 4's numerically failed axis update and its end of a position fa
 in with its position reference, ALGORITHMS.md 7's course gate and its guard, GPS step 3's aid of N and E
 once any yaw observation was made (session 26), the step test's held fixes' positions in fuzzy rows
 (session 27), GPS step 4's position hold in fuzzy rows and section 5's rows applied beside the N/E pair's
-(session 28), and step by step against the C core in tests/python/test_nav_golden_vs_c.py)
+(session 28), the history ring's 30 ms spacing, ``MCA_HIST_DT_US`` (session 29; 20 ms before), and step
+by step against the C core in tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
     ``init_still_s``, ``init_timeout_s``, ``cs_lag_s``, ``imu_dt_max_s``, the CS ``dt_max_s``
@@ -421,7 +422,7 @@ __all__ = [
 
 MCA_HIST_LEN = 48  # history ring entries (ALGORITHMS.md 8)
 YAW_UNOBSERVED_US = 10_000_000  # no yaw observation for this long: yaw unobserved
-MCA_HIST_DT_US = 20_000  # IMU time per entry, us
+MCA_HIST_DT_US = 30_000  # IMU time per entry, us (ALGORITHMS.md 8; 20 000 until session 29)
 
 COMP_OFF, COMP_CS, COMP_GPS_DIFF = 0, 1, 2  # comp_mode
 YAW_NONE, YAW_MAG, YAW_COG = 0, 1, 2  # yaw_source
