@@ -137,6 +137,7 @@ MCA_COLD mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg)
     mca_zero_bytes(nav, sizeof(*nav));
     mca_copy_bytes(&nav->cfg, cfg, sizeof(nav->cfg));
     nav->g_mps2 = cfg->gravity_mps2 > 0.0f ? cfg->gravity_mps2 : G0;
+    nav->hist_dt_q = MCA_HIST_DT_US / 250u;
     nav->att.q_nb[0] = 1.0f;
     for (size_t i = 0; i < 3u; ++i) {
         nav->last_gps_t[i] = NAN;
@@ -209,7 +210,7 @@ static void hist_accumulate(mca_nav_t *nav, const float f[3], uint32_t dt_us, in
     nav->hist_n++;
     nav->hist_acc_us += dt_us;
     nav->hist_sat = (uint8_t)(nav->hist_sat | (sat ? 1u : 0u));
-    if (nav->hist_acc_us >= (uint32_t)MCA_HIST_DT_US) {
+    if (nav->hist_acc_us >= (uint32_t)nav->hist_dt_q * 250u) {
         mca_hist_entry_t *e = &nav->hist[nav->hist_head];
         const float inv = 1.0f / (float)nav->hist_n;
         e->t_us = (uint32_t)nav->t_imu_us;
@@ -243,7 +244,7 @@ static const mca_hist_entry_t *hist_at(const mca_nav_t *nav, uint16_t oldest, ui
 
 /* Position k (0 = oldest) of the first entry whose time is >= t32, hist_count if none. Entry
  * times increase strictly (one push per >= MCA_HIST_DT_US), so a binary search on the
- * wrap-safe signed differences of the low 32 bits (the ring spans < 2 s) does it. Not inlined
+ * wrap-safe signed differences of the low 32 bits (the ring spans < 2.4 s) does it. Not inlined
  * into its two callers (24 B); hist_at stays inlined in its loop (as a call it cost ~220
  * instructions on the longest GPS step). */
 MCA_NOINLINE static uint16_t hist_lower_bound(const mca_nav_t *nav, uint16_t oldest, uint32_t t32)
@@ -414,7 +415,7 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
     }
     if (prev < 0) {
         const mca_hist_entry_t *e = hist_newest(nav);
-        if (-prev > (int32_t)MCA_HIST_DT_US || e->saturated) {
+        if (-prev > (int32_t)nav->hist_dt_q * 250 || e->saturated) {
             return 0;
         }
         integrate(nav, e, -prev, inc);
@@ -1130,6 +1131,11 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
             if ((nav->step_flags & STEP_RET) == 0u && st == MCA_OK) {
                 gps_attitude(nav, fix, &fv);
             }
+            /* the ring's spacing for the next fix (ALGORITHMS.md 8, history ring): 1/40 of the span
+             * this fix's increments needed, so that 48 entries span 1.175 times it */
+            const uint64_t need = nav->t_imu_us - nav->t_lastfix_us; /* (IMU behind the last fix: long) */
+            const uint32_t q = need >= 2000000u ? MCA_HIST_DT_MAX_US / 250u : (uint32_t)need / 10000u;
+            nav->hist_dt_q = (uint8_t)(q < MCA_HIST_DT_US / 250u ? MCA_HIST_DT_US / 250u : q);
         }
     }
     nav->have_fix = 1u;

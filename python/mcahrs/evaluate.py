@@ -33,8 +33,8 @@ Without a reference (the car drive), the reference-free measures:
   time), each filter's mean roll/pitch over the first 0.5 s of the stop against the tilt of
   the accelerometer averaged over the whole stop (the levelled accelerometer, true to its bias);
 * **gravity residual** (every recording): at every fix while moving (speed > 1 m/s),
-  ``|g_b| - g`` with ``g_b = -(f - C_bn a_n)``, ``f`` the mean specific force of one history entry
-  (30 ms) at the observation time the core uses, ``a_n`` the method's compensation (0, the CS acceleration
+  ``|g_b| - g`` with ``g_b = -(f - C_bn a_n)``, ``f`` the 20 ms mean specific force (one history entry) at the
+  observation time the core uses, ``a_n`` the method's compensation (0, the CS acceleration
   after the fix update paired at ``t_fix - cs_lag``, or the velocity difference at ``t_fix``);
   its spread (std, p95 of the absolute value) shows how much maneuver is left in the
   observation. Filters without GNSS (IMU-only, compensation off) share the raw row.
@@ -89,6 +89,8 @@ REF_LAG_STEP_S = 0.001
 REF_MAX_GAP_S = 1.0
 #: Below this median IMU rate a recording is not fit for strapdown integration (esc_status_log: 9.6 Hz).
 MIN_IMU_RATE_HZ = 50.0
+#: One history entry of the core (ALGORITHMS.md 8), the averaging of f in the gravity residual.
+HIST_DT_S = 0.02
 
 PRESET_NAMES = ("ground", "fixedwing", "multirotor")
 
@@ -579,13 +581,10 @@ def stop_tilt(rec: Recording, runs: Sequence[MethodRun], stops: Sequence[tuple[i
 
 
 def _hist_mean_f(t_us: np.ndarray, f: np.ndarray, t_end_us: np.ndarray) -> np.ndarray:
-    """Mean specific force over the history entry's interval (ALGORITHMS.md 8, ``MCA_HIST_DT_US`` of
-    the C core, 30 ms) ending at each ``t_end_us``."""
-    from mcahrs import core
-
+    """Mean specific force over the 20 ms ending at each ``t_end_us`` (one history entry)."""
     cs = np.concatenate([np.zeros((1, 3)), np.cumsum(f, axis=0)])
     hi = np.searchsorted(t_us, t_end_us, side="right")
-    lo = np.searchsorted(t_us, t_end_us - int(core.lib.MCA_HIST_DT_US), side="right")
+    lo = np.searchsorted(t_us, t_end_us - int(HIST_DT_S * 1e6), side="right")
     n = np.maximum(hi - lo, 1)
     out = (cs[hi] - cs[lo]) / n[:, None]
     out[hi - lo <= 0] = np.nan
@@ -1015,7 +1014,7 @@ def format_report(ev: Evaluation) -> str:
         lines.append("")
         lines.append(
             f"Gravity residual |g_b| - g at the fixes while moving (speed > {MOVING_SPEED_MPS:g} m/s), "
-            "f = one history entry's mean at the observation time [m/s^2]"
+            "f = 20 ms mean at the observation time [m/s^2]"
         )
         lines.append(f"{'compensation':28s}{'n':>6s}{'mean':>8s}{'std':>8s}{'p95 |.|':>9s}")
         for name, s in ev.grav_res.items():

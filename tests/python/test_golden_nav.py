@@ -787,6 +787,124 @@ def test_history_lookup_nearest_with_ties_to_older() -> None:
     assert nav.hist_lookup(10**9).t_us == nav.hist[-1].t_us
 
 
+def _rest_nav() -> gnav.Nav:
+    """A level Nav at rest, gravity G: 2.5 ms IMU samples from t = 0 align it at t = 1 s (400 intervals
+    of the 1 s still block; the aligning sample is not added to the history)."""
+    nav = gnav.Nav(replace(gnav.NavConfig(), gravity_mps2=G))
+    _imu_to(nav, 1_000_000)
+    assert nav.aligned and nav.hist_dt_us == gnav.MCA_HIST_DT_US == 20_000
+    return nav
+
+
+def _imu_to(nav: gnav.Nav, t_end: int, dt_us: int = 2500) -> None:
+    """Level, at rest, IMU samples every dt_us up to t_end (a shorter last step lands on it)."""
+    t = -dt_us if nav.t_imu_us is None else nav.t_imu_us
+    while t < t_end:
+        t = min(t + dt_us, t_end)
+        nav.imu(t, (0.0, 0.0, 0.0), (0.0, 0.0, -G))
+
+
+def _rest_fix(t_us: int) -> GnssFix:
+    return GnssFix(
+        t_us=t_us, t_rx_us=t_us, lat_e7=HOME_E7[0], lon_e7=HOME_E7[1], alt_mm=HOME_E7[2],
+        vel_ned_mps=(0.0, 0.0, 0.0), h_acc_m=0.5, v_acc_m=1.0, s_acc_mps=0.05, fix_type=3,
+        flags=GNSS_HAS_VEL_NE | GNSS_HAS_VEL_D | GNSS_HAS_ALT,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("period_us", "n_fix", "dt_h", "covered"),
+    [
+        # 1 Hz, 0.1 s latency: s = 1.1 s, dt_h = 250 min(max(110, 80), 200) = 27 500 us. At the first fix
+        # after home the ring is 47 x 20 ms = 0.94 s (oldest 2.10 - 0.94 = 1.16 s, after t_cs = 1 s): no
+        # increments. At the next the ring is 36 x 27.5 ms + 11 x 20 ms (oldest 3.09 - 0.99 - 0.22 = 1.88
+        # s <= t_cs = 2 s): increments.
+        (1_000_000, 4, 27_500, [False, True, True]),
+        # 5 Hz, 0.1 s latency: s = 0.3 s, floor(s / 10 ms) = 30 < 80: dt_h stays 20 000 us. The first fix
+        # after home comes before the ring (started at alignment, 1.02 s) reaches back to t_cs = 1 s.
+        (200_000, 8, 20_000, [False] + [True] * 6),
+    ],
+)
+def test_history_spacing_follows_the_fixes(
+    period_us: int, n_fix: int, dt_h: int, covered: list[bool]
+) -> None:
+    """ALGORITHMS.md 8, history ring, the spacing dt_h: 20 ms at initialisation and after the home fix;
+    each fix after it sets dt_h from s = t_imu - t_lastfix (fix k at 1 s + k period, given to the filter
+    0.1 s later, after the IMU sample at that time); entries are pushed every dt_h of IMU time (2.5 ms
+    samples: 11 a 27.5 ms entry, 8 a 20 ms one), so the full ring spans 47 dt_h, more than the fix
+    interval plus latency; GPS step 3 holds the newest entry's acceleration for at most dt_h."""
+    nav = _rest_nav()
+    seen = []
+    for k in range(n_fix):
+        t_fix = 1_000_000 + k * period_us
+        _imu_to(nav, t_fix + 100_000)
+        if k > 0:  # GPS step 3's increments over (t_cs, t_fix], from the ring as the fixes before left it
+            assert nav.t_lastfix_us is not None
+            seen.append(nav._imu_increments(nav.t_lastfix_us, t_fix) is not None)
+        nav.gps(_rest_fix(t_fix))
+        assert nav.hist_dt_us == (gnav.MCA_HIST_DT_US if k == 0 else dt_h)  # the home fix sets none
+    assert seen == covered
+    assert len(nav.hist) == gnav.MCA_HIST_LEN
+    ends = [e.t_us for e in nav.hist]
+    assert set(np.diff(ends).tolist()) == {dt_h}
+    span = ends[-1] - ends[0]
+    assert span == 47 * dt_h and span > period_us + 100_000
+    # the hold past the newest entry: at most dt_h (the spacing of the moment)
+    assert nav._imu_increments(ends[0], ends[-1] + dt_h) is not None
+    assert nav._imu_increments(ends[0], ends[-1] + dt_h + 1) is None
+
+
+def test_history_spacing_rule_edges() -> None:
+    """ALGORITHMS.md 8, history ring: dt_h = 250 min(max(floor(s / 10 ms), 80), 200) us for s < 2 s,
+    else 50 ms; t_imu before t_lastfix counts as s >= 2 s; a CS re-initialisation after a gap (GPS step
+    3) and the home fix set nothing. A fix whose CS update fails numerically still sets it (golden
+    choice 2: it is neither the home fix nor the gap's re-initialisation)."""
+    nav = _rest_nav()
+    nav.gps(_rest_fix(1_000_000))  # home at t_imu = 1 s
+    assert nav.hist_dt_us == 20_000
+    for s_us, dt_h in (
+        (799_999, 20_000),  # floor 79 -> 80
+        (810_000, 20_250),  # 81
+        (1_234_567, 30_750),  # 123
+        (1_999_999, 49_750),  # 199
+        (2_000_000, gnav.MCA_HIST_DT_MAX_US),  # s of 2 s: 50 000
+        (2_500_000, 50_000),  # floor 250 capped at 200 either way
+    ):
+        assert nav.t_lastfix_us is not None
+        t0 = nav.t_lastfix_us
+        _imu_to(nav, t0 + s_us)
+        assert nav.t_imu_us == t0 + s_us
+        nav.gps(_rest_fix(t0 + 1000))  # a fix 1 ms after the last one, s old when it arrives
+        assert nav.hist_dt_us == dt_h, s_us
+    # t_imu before t_lastfix: a fix ahead of the IMU sets dt_h from s >= 0 as usual, the next one (no
+    # IMU sample between) has s < 0, which counts as 2 s or more
+    assert nav.t_imu_us is not None and nav.t_lastfix_us is not None
+    t = nav.t_imu_us
+    nav.gps(_rest_fix(t))  # s = 2.5 s - 1 ms
+    assert nav.hist_dt_us == 50_000
+    _imu_to(nav, t + 300_000)
+    nav.gps(_rest_fix(t + 200_000))  # s = 0.3 s
+    assert nav.hist_dt_us == 20_000
+    nav.gps(_rest_fix(t + 800_000))  # ahead of the IMU: s = (t + 0.3 s) - (t + 0.2 s) = 0.1 s
+    assert nav.hist_dt_us == 20_000
+    nav.gps(_rest_fix(t + 900_000))  # s = (t + 0.3 s) - (t + 0.8 s) < 0: 50 ms
+    assert nav.hist_dt_us == gnav.MCA_HIST_DT_MAX_US
+    _imu_to(nav, t + 900_000 + 1_234_567)
+    nav.gps(_rest_fix(t + 901_000))  # s = 1 234 567 us: 30 750
+    assert nav.hist_dt_us == 30_750
+    # a gap past the CS dt_max (10 s): the CS is re-initialised, steps 4-6 skipped, dt_h as it was (the
+    # rule would give 50 ms here: t_imu is before the fix)
+    t_gap = t + 901_000 + 10_000_001
+    nav.gps(_rest_fix(t_gap))
+    assert nav.t_lastfix_us == t_gap and nav.hist_dt_us == 30_750
+    # a fix whose N update fails numerically (choice 22) sets dt_h all the same (choice 2)
+    _imu_to(nav, t_gap + 810_000, dt_us=50_000)
+    nav.cs.axes[0].P[0, 0] = -100.0
+    with pytest.raises(SingularError):
+        nav.gps(_rest_fix(t_gap + 1000))
+    assert nav.t_lastfix_us == t_gap + 1000 and nav.hist_dt_us == 20_250  # s = 0.81 s
+
+
 # --------------------------------------------------------------------------------------
 # Physics on the shared simulator (skipped until mcahrs.sim provides scenario())
 # --------------------------------------------------------------------------------------

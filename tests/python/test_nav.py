@@ -850,13 +850,14 @@ def _fuzzy_rows_fault(
     ],
 )
 def test_one_hz_fixes_get_the_imu_aided_test(name: str, preset: str, seed: int) -> None:
-    """ALGORITHMS.md 8, history ring and GPS step 3: 47 intervals of 30 ms span 1.41 s, so a 1 Hz
-    receiver (the simulator's 0.1 s latency) gets the IMU-aided test and the velocity step test. A
-    15 s, 3 m/s velocity burst in the fuzzy-rows profile is alarmed on every fix, nothing after it,
-    nothing on the outlier-free run, and the velocity stays within the coast's 1.7 m/s of it.
-    Measured with the 20 ms ring (0.94 s, until session 29; 1 Hz fixes then had the CS's own test):
-    80-87 % of the burst alarmed, 6-20 false alarms in the 20 s after it and 12-30 on the outlier-free
-    run's 260 fixes, the velocity 3.2-30 m/s off the outlier-free run's."""
+    """ALGORITHMS.md 8, history ring and GPS step 3: the ring's spacing follows the fixes, 27.5 ms at
+    1 Hz with the simulator's 0.1 s latency (47 intervals, 1.29 s), so a 1 Hz fix gets the IMU-aided
+    test and the velocity step test. A 15 s, 3 m/s velocity burst in the fuzzy-rows profile is
+    alarmed on every fix, nothing after it, nothing on the outlier-free run, and the velocity stays
+    within the coast's 1.7 m/s of it. Measured with 20 ms always (0.94 s, until session 29; 1 Hz
+    fixes then had the CS's own test): 80-87 % of the burst alarmed, 6-20 false alarms in the 20 s
+    after it and 12-30 on the outlier-free run's 260 fixes, the velocity 3.2-30 m/s off the
+    outlier-free run's."""
     rec, clean, clean_alarm, run, alarm, sel, after = _fuzzy_rows_fault(
         name, preset, seed, 260.0, (150.0, 165.0, (0.0, 0.0), (2.4, -1.8)), (165.0, 185.0), gps_rate_hz=1.0
     )

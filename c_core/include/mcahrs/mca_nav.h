@@ -14,10 +14,12 @@
 #include "mca_cs.h"
 #include "mca_geo.h"
 
-/** History ring: entries and their spacing (ALGORITHMS.md 8). 47 intervals of 30 ms span 1.41 s:
- * a 1 Hz fix with up to 0.41 s of latency still finds its IMU increments (GPS step 3). */
+/** History ring: entries and their spacing (ALGORITHMS.md 8). The spacing is MCA_HIST_DT_US, and
+ * longer, up to MCA_HIST_DT_MAX_US, while the fixes need it: a fix's IMU increments (GPS step 3)
+ * reach back to the last fix, which 47 intervals of 20 ms (0.94 s) do not at 1 Hz. */
 #define MCA_HIST_LEN 48
-#define MCA_HIST_DT_US 30000
+#define MCA_HIST_DT_US 20000
+#define MCA_HIST_DT_MAX_US 50000
 
 /** comp_mode */
 #define MCA_COMP_OFF 0
@@ -55,7 +57,7 @@ typedef struct {
     uint8_t nogps_centripetal;  /**< without GPS remove w x [V,0,0] (vehicle moves along its nose) */
     uint8_t gps_test_imu;       /**< 1: robust modes test each CS update against the IMU-aided
                                      prediction (ALGORITHMS.md 8, GPS step 3); 0: the CS's own */
-    float cs_lag_s;             /**< pairing delay of the CS acceleration, [0, 1.41] (history span) */
+    float cs_lag_s;             /**< pairing delay of the CS acceleration, [0, 0.94] (history span) */
     float gps_timeout_s;        /**< no fix this long: GPS lost, > 0 */
     float grav_period_s;        /**< observation period without GPS, > 0 */
     float nogps_rp_var_rad2;    /**< roll/pitch variance added without GPS (base), >= 0 */
@@ -128,6 +130,8 @@ typedef struct {
     uint16_t hist_head;      /**< next slot to write */
     uint16_t hist_count;     /**< entries written, up to MCA_HIST_LEN */
     uint8_t hist_sat;        /**< saturated sample in the entry being built */
+    uint8_t hist_dt_q;       /**< the ring's spacing in 250 us units, MCA_HIST_DT_US to
+                                  MCA_HIST_DT_MAX_US (ALGORITHMS.md 8; in a padding byte) */
     /** Before alignment the alignment's sums; after it the velocity step test's state (the test
      *  runs aligned only, ALGORITHMS.md 8, GPS step 3): one memory for both. */
     union {

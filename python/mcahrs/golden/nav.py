@@ -19,8 +19,8 @@ checks, GPS step 4's numerically failed axis update and its end of a position fa
 in with its position reference, ALGORITHMS.md 7's course gate and its guard, GPS step 3's aid of N and E
 once any yaw observation was made (session 26), the step test's held fixes' positions in fuzzy rows
 (session 27), GPS step 4's position hold in fuzzy rows and section 5's rows applied beside the N/E pair's
-(session 28), the history ring's 30 ms spacing, ``MCA_HIST_DT_US`` (session 29; 20 ms before), and step
-by step against the C core in tests/python/test_nav_golden_vs_c.py)
+(session 28), the history ring's spacing, which follows the fixes, 20-50 ms (session 29), and step by step
+against the C core in tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
     ``init_still_s``, ``init_timeout_s``, ``cs_lag_s``, ``imu_dt_max_s``, the CS ``dt_max_s``
@@ -31,6 +31,22 @@ by step against the C core in tests/python/test_nav_golden_vs_c.py)
 2.  ``MCA_HIST_LEN`` is 48 (ALGORITHMS.md 8; ``Nav(hist_len=)`` takes another size). History
     interval accumulator: reset to 0 (not carried over) at each push. Lookup: smallest
     ``|t_entry - t|``, ties to the older; ``t <`` oldest entry time, or an empty ring, is a miss.
+    The spacing ``dt_h`` (``Nav.hist_dt_us``, integer us; session 29): ``MCA_HIST_DT_US`` (20 000) at
+    ``reset``; an entry is pushed when the accumulated interval reaches the spacing of the moment
+    (``>=``; a spacing that shrank below the interval accumulated so far pushes at the next sample).
+    It is set on every fix past step 3's gap check: not the home fix (step 2), not a CS
+    re-initialisation after a gap (step 3), but every other fix that reaches step 7, so also one
+    whose CS update failed numerically (choice 22) and one that restarts the CS at the end of a
+    fault (choices 23, 24, 28), which do not do steps 5-6 (the spec's parenthesis names only the
+    home fix and the gap as the fixes that do not "go through steps 4-6", and the spacing is the span
+    this fix's IMU increments needed, which neither a failed update nor a restart changes). It is
+    set after step 6 and before step 7 (after step 4 on those fixes), so step 3's hold (choice 14)
+    reads the spacing the fixes before left: ``s = t_imu - t_lastfix`` (the newest IMU time, the one
+    the IMU step keeps, a ``BAD_DT`` re-anchor's included; ``t_lastfix`` before step 7), ``dt_h = 250
+    min(max(s // 10 000, 80), 200)`` when ``0 <= s < 2 000 000``, else ``MCA_HIST_DT_MAX_US``
+    (50 000): ``t_imu`` before ``t_lastfix``, or no IMU sample yet (no newest IMU time: taken as
+    before it), counts as ``s >= 2 s``. Aligned or not. A step 1 error, or an input check of step 4,
+    leaves it as it was.
 3.  Lost-GPS roll/pitch timer: due when ``t_us - t_last >= grav_period_us``; ``t_last`` is the
     alignment sample's time, then the time of the last due attempt (made or skipped). The
     centripetal term uses the bias after this sample's propagation (propagation leaves ``b``
@@ -91,8 +107,9 @@ by step against the C core in tests/python/test_nav_golden_vs_c.py)
     (``FLAG_ALARM_N << axis``). The reported ``gps_T`` is each update's tested T.
 14. IMU increments (GPS step 3): ring entries as consecutive (previous end, end] intervals, the
     oldest one only as the start of the next; the interval's end past the newest entry holds the
-    newest entry's acceleration for at most ``MCA_HIST_DT_US``; any saturated entry that overlaps
-    the interval, or one held, turns the aid off for all axes.
+    newest entry's acceleration for at most the spacing ``dt_h`` (choice 2, the value the fixes
+    before this one set, whatever spacing the newest entry was pushed at); any saturated entry that
+    overlaps the interval, or one held, turns the aid off for all axes.
 15. The IMU-aided N and E (GPS step 3, session 26): "once any yaw observation was made" is a yaw
     observation or the yaw alignment taken since the reset (``t_yaw_us`` set; the first one made is
     always the alignment, which the course gate does not refuse), however long ago: the
@@ -402,6 +419,7 @@ __all__ = [
     "FLAG_HOME_SET",
     "FLAG_SATURATED",
     "FLAG_YAW_UNOBSERVED",
+    "MCA_HIST_DT_MAX_US",
     "MCA_HIST_DT_US",
     "MCA_HIST_LEN",
     "STATUS_CODES",
@@ -422,7 +440,9 @@ __all__ = [
 
 MCA_HIST_LEN = 48  # history ring entries (ALGORITHMS.md 8)
 YAW_UNOBSERVED_US = 10_000_000  # no yaw observation for this long: yaw unobserved
-MCA_HIST_DT_US = 30_000  # IMU time per entry, us (ALGORITHMS.md 8; 20 000 until session 29)
+MCA_HIST_DT_US = 20_000  # the history spacing dt_h at initialisation and its minimum, us (ALGORITHMS.md 8)
+MCA_HIST_DT_MAX_US = 50_000  # ... its maximum, us: s of 2 s or more since the last fix (session 29)
+HIST_DT_SPAN_US = 2_000_000  # ... s from here on (or t_imu before t_lastfix) gives MCA_HIST_DT_MAX_US
 
 COMP_OFF, COMP_CS, COMP_GPS_DIFF = 0, 1, 2  # comp_mode
 YAW_NONE, YAW_MAG, YAW_COG = 0, 1, 2  # yaw_source
@@ -839,6 +859,7 @@ class Nav:
         self.yaw_aligned = False  # the first yaw observation aligns yaw (ALGORITHMS.md 7)
         # history ring and its accumulator
         self.hist: deque[HistEntry] = deque(maxlen=self.hist_len)
+        self.hist_dt_us = MCA_HIST_DT_US  # the spacing dt_h, set by the fixes (choice 2, session 29)
         self.acc_f = [0.0, 0.0, 0.0]
         self.acc_n = 0
         self.acc_us = 0
@@ -967,7 +988,7 @@ class Nav:
         self.acc_n += 1
         self.acc_us += dt_us
         self.acc_sat = self.acc_sat or sat
-        if self.acc_us >= MCA_HIST_DT_US:
+        if self.acc_us >= self.hist_dt_us:
             n = self.acc_n
             mean = (self.acc_f[0] / n, self.acc_f[1] / n, self.acc_f[2] / n)
             self.hist.append(HistEntry(t_us, mean, self.q, self.acc_sat))
@@ -987,6 +1008,17 @@ class Nav:
             if d < best_d:
                 best, best_d = e, d
         return best
+
+    def _set_hist_spacing(self) -> None:
+        """The spacing dt_h from this fix's span ``s = t_imu - t_lastfix`` (ALGORITHMS.md 8, history
+        ring; choice 2): ``s / 40`` in steps of 250 us, 20-50 ms. Called after GPS step 6 (or step 4 on a
+        fix that does not do steps 5-6), before step 7 sets ``t_lastfix`` to this fix's time."""
+        assert self.t_lastfix_us is not None
+        s = None if self.t_imu_us is None else self.t_imu_us - self.t_lastfix_us
+        if s is None or s < 0 or s >= HIST_DT_SPAN_US:
+            self.hist_dt_us = MCA_HIST_DT_MAX_US
+        else:
+            self.hist_dt_us = 250 * min(max(s // 10_000, 80), 200)
 
     # ----------------------------------------------------------------------------------
     # Observations
@@ -1255,7 +1287,8 @@ class Nav:
             # GPS step 4: the failed axes stay as predicted, the others updated; the CS was predicted
             # to the fix all the same, so step 7 is done (the next fix predicts from this one); steps
             # 5-6 are not (choice 22). The error is then raised. A restarted CS: steps 5-6 are not
-            # done either, step 7 is (choices 23, 24).
+            # done either, step 7 is (choices 23, 24). The history spacing is set before step 7 (choice 2).
+            self._set_hist_spacing()
             self._step7(fx, has_vel, held, ran, reports)
             if failure is not None:
                 raise failure
@@ -1305,6 +1338,7 @@ class Nav:
             if cfg.yaw_source == YAW_COG and has_ne and not flagged and not held:
                 self._course_observation(fx)
 
+        self._set_hist_spacing()  # after step 6, before step 7 (choice 2)
         self._step7(fx, has_vel, held, ran, reports)
 
     def _cs_restart(self, ned: np.ndarray, v0: tuple[float, ...], from_ref: bool = False) -> None:
@@ -1704,7 +1738,7 @@ class Nav:
             add(e, hi - lo)
         last = h[-1]
         if t1 > last.t_us:
-            if t1 - last.t_us > MCA_HIST_DT_US or last.saturated:
+            if t1 - last.t_us > self.hist_dt_us or last.saturated:
                 return None
             add(last, t1 - last.t_us)
         return dp, dv
