@@ -1,6 +1,6 @@
 """GNSS faults injected into the real recordings of ../shared/data: the robust profiles on real sensors.
 
-Run: PYTHONPATH=python python benchmarks/bench_outliers_real.py [--data DIR] [--seed N]
+Run: PYTHONPATH=python python benchmarks/bench_outliers_real.py [--data DIR] [--seed N] [--fix-rate HZ]
 
 Prints, never asserts. ``benchmarks/bench_outliers.py`` measures the robust set-ups
 (``core.robust_profile``) on the simulator, whose receiver and IMU errors are the model's. Here
@@ -25,6 +25,10 @@ profile does with it is measured against the same profile's run without it:
   fixes the profile's rule flags (bench_outliers' rules on the GPS T: plain chi2(0.005), FTA
   chi2(1e-4), AKF chi2(1e-2), the fuzzy detector re-run, IGG-III T > 9), and the position's
   worst distance from the outlier-free run's, during the fault and 10 s after it.
+
+``--fix-rate HZ`` keeps one fix in ``round(rate / HZ)`` of each recording (a slower receiver on the
+same drive, e.g. 1 Hz: the comma2k19 minute's 1 in 10, the car's 1 in 4, the PX4 log's 1 in 2),
+with the profiles set up for the rate that leaves.
 """
 
 from __future__ import annotations
@@ -140,12 +144,15 @@ def fault_starts(rec: Recording) -> list[float]:
     return [START_S + k * step for k in range(CAR_PLACES)]
 
 
-def bench_recording(path: Path, seed: int) -> None:
+def bench_recording(path: Path, seed: int, fix_rate_hz: float | None = None) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the loaders' notes on the logs' own quirks
         from mcahrs.io.loaders import load
 
         rec = load(path)
+    if fix_rate_hz:
+        step = max(1, round(core.fix_rate_hz(rec) / fix_rate_hz))
+        rec = dataclasses.replace(rec, gnss=rec.gnss[::step])
     preset, why = auto_preset(rec, path)
     t_fix = rec.gnss["t_us"] * 1e-6
     t0_fix = float(t_fix[0])
@@ -269,18 +276,22 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the shared data folder")
     ap.add_argument("--seed", type=int, default=1, help="fault azimuths")
+    ap.add_argument(
+        "--fix-rate", type=float, metavar="HZ", help="keep one fix in round(rate / HZ): a slower receiver"
+    )
     args = ap.parse_args()
     t_start = time.perf_counter()
     data = args.data.resolve()
     print(
         "GNSS faults injected into real recordings, each alone; the robust profiles of core.robust_profile."
+        + (f" Fixes thinned to about {args.fix_rate:g} Hz." if args.fix_rate else "")
     )
     for rel in RECORDINGS:
         path = data / rel
         if not path.exists():
             print(f"\n{path}: not present, skipped")
             continue
-        bench_recording(path, args.seed)
+        bench_recording(path, args.seed, args.fix_rate)
     print(f"\nrun time {time.perf_counter() - t_start:.1f} s")
     return 0
 
