@@ -1132,7 +1132,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                 gps_attitude(nav, fix, &fv);
             }
             /* the ring's spacing for the next fix (ALGORITHMS.md 8, history ring): 1/40 of the span
-             * this fix's increments needed, so that 48 entries span 1.175 times it */
+             * this fix's increments needed, so that the 47 intervals span 1.175 times it */
             const uint64_t need = nav->t_imu_us - nav->t_lastfix_us; /* (IMU behind the last fix: long) */
             const uint32_t q = need >= 2000000u ? MCA_HIST_DT_MAX_US / 250u : (uint32_t)need / 10000u;
             nav->hist_dt_q = (uint8_t)(q < MCA_HIST_DT_US / 250u ? MCA_HIST_DT_US / 250u : q);
