@@ -522,9 +522,9 @@ REAL_RECEIVER_FLOORS = {"gps_pos_noise_min_m": 0.5, "gps_vel_noise_min_mps": 0.3
 # EKF2_ACC_NOISE 0.35 m/s^2 a step of its 100 Hz prediction: densities 0.015 sqrt(0.01 s) and
 # 0.35 sqrt(0.01 s)). The INS defaults are an IMU's white noise with margin, right for the
 # simulator; a vehicle's IMU also sees vibration, coning and scale-factor errors at its rates. On
-# the PX4 log with the defaults the INS's GNSS T is 16 in the median, its roll 2-4 deg off EKF2's
-# for 40 s, and the fuzzy detector rejects 61 % of the fixes; with these T is 3.0 and it rejects
-# none (tests/python/test_ins.py).
+# the PX4 log with the defaults the fuzzy detector rejects 44 % of the fixes (the plain INS's
+# GNSS T 4.2 in the median; 16 with the IMU samples the logger dropped left out); with these T is
+# 1.5 and it rejects none (tests/python/test_ins.py).
 REAL_IMU_NOISE = {"gyro_noise_rps": 1.5e-3, "accel_noise_mps2": 3.5e-2}
 
 # What the INS runs real recordings with: both of the above.

@@ -167,6 +167,12 @@ def ulog61() -> Recording:
 
 
 @pytest.fixture(scope="module")
+def ulog61_logged() -> Recording:
+    """log_61's samples as logged, without the ones the logger dropped put back."""
+    return load(_need(ULOG61), fill_dropped=False)
+
+
+@pytest.fixture(scope="module")
 def ulog_esc() -> Recording:
     return load(_need(ULOG_ESC))
 
@@ -185,9 +191,9 @@ def car() -> Recording:
 # ---------------------------------------------------------------- ULog: log_61 (PX4 v1.14)
 
 
-def test_ulog61_counts_rates_and_gnss_fields_match_readme(ulog61: Recording) -> None:
-    check_common(ulog61)
-    imu, gnss = ulog61.imu, ulog61.gnss
+def test_ulog61_counts_rates_and_gnss_fields_match_readme(ulog61_logged: Recording) -> None:
+    check_common(ulog61_logged)
+    imu, gnss = ulog61_logged.imu, ulog61_logged.gnss
     dt_ms = np.diff(imu["t_us"]) * 1e-3
     assert np.median(dt_ms) == pytest.approx(5.0, abs=0.05)  # README: 200 Hz nominal
     assert (imu.size - 1) / (np.ptp(imu["t_us"]) * 1e-6) == pytest.approx(186, abs=1.5)  # README: 186 Hz mean
@@ -202,12 +208,76 @@ def test_ulog61_counts_rates_and_gnss_fields_match_readme(ulog61: Recording) -> 
     assert np.all(gnss["flags"] & GNSS_HAS_VEL_NE) and np.all(gnss["flags"] & GNSS_HAS_VEL_D)
     lat, lon = gnss["lat_e7"] * 1e-7, gnss["lon_e7"] * 1e-7
     assert abs(lat.mean() - 22.885) < 0.01 and abs(lon.mean() - 113.847) < 0.01  # README location
-    assert np.median(np.diff(ulog61.ref["t_us"])) * 1e-6 == pytest.approx(0.05, abs=0.002)  # README: 20 Hz
-    assert ulog61.mag.size > 100 and np.median(np.diff(ulog61.mag["t_us"])) * 1e-6 < 0.6  # README: 2 Hz
-    assert ulog61.meta["px4_ekf2_gps_delay_us"] == 110_000  # README: EKF2_GPS_DELAY 110 ms
+    ref, mag = ulog61_logged.ref, ulog61_logged.mag
+    assert np.median(np.diff(ref["t_us"])) * 1e-6 == pytest.approx(0.05, abs=0.002)  # README: 20 Hz
+    assert mag.size > 100 and np.median(np.diff(mag["t_us"])) * 1e-6 < 0.6  # README: 2 Hz
+    assert ulog61_logged.meta["px4_ekf2_gps_delay_us"] == 110_000  # README: EKF2_GPS_DELAY 110 ms
     # README: timestamp_sample of the GPS topic is 0 here, so the fix time is its publication time
     # minus the latency the autopilot was configured with (the loader's default).
     assert np.array_equal(gnss["t_us"], gnss["t_rx_us"] - 110_000)
+
+
+def test_ulog61_dropped_samples_are_put_back_where_no_sample_covers(
+    ulog61: Recording, ulog61_logged: Recording
+) -> None:
+    """Each logged sample is the mean over gyro_integral_dt ending at its time; time no sample
+    covers is samples the logger dropped. Counted here from the raw topic, independently."""
+    from pyulog import ULog
+
+    raw = ULog(str(ULOG61), ["sensor_combined"]).data_list[0].data
+    t = np.asarray(raw["timestamp"], np.int64)
+    idt = np.asarray(raw["gyro_integral_dt"], np.int64)
+    uncovered = np.diff(t) - idt[1:]
+    assert uncovered.min() > -2  # the means tile the time (to the microsecond) between the gaps
+    dropped = int(np.sum(np.rint(uncovered[uncovered >= 2500] / 5000.0)))
+    assert dropped == 1106 == ulog61.meta["imu_filled_samples"]  # 7.3 % of the time: 92.7 % covered
+    logged, filled = ulog61_logged.imu, ulog61.imu
+    assert filled.size == logged.size + dropped
+    # every logged sample is there unchanged, and what was put back sits inside a gap
+    keep = np.isin(filled["t_us"], logged["t_us"])
+    assert np.array_equal(filled[keep], logged)
+    new = filled[~keep]
+    k = np.searchsorted(logged["t_us"], new["t_us"])
+    assert np.all((k > 0) & (k < logged.size))
+    assert np.all(new["t_us"] <= logged["t_us"][k] - idt[1:][k - 1] + 1)  # before the next sample's own span
+    # each is the mean of the two samples before its gap and the two after it
+    near = logged["gyro_rps"][np.clip(k[:, None] + np.arange(-2, 2), 0, logged.size - 1)]
+    assert np.allclose(new["gyro_rps"], near.mean(axis=1), rtol=0, atol=1e-6)
+    assert np.diff(filled["t_us"]).max() * 1e-3 < 5.5  # no interval left longer than a sample's
+    # the gyro then carries EKF2's attitude closer to EKF2's own (the vibration, lag-1
+    # autocorrelation -0.55, made the next sample a poor stand-in for the dropped one)
+    for span in (1.0, 5.0):
+        e_filled = np.median(gyro_propagation_error_deg(ulog61, span_s=span))
+        e_logged = np.median(gyro_propagation_error_deg(ulog61_logged, span_s=span))
+        assert e_filled < 0.7 * e_logged
+
+
+def test_ulog_fill_leaves_a_throttled_or_complete_topic_alone() -> None:
+    t = np.arange(0, 1_000_000, 5000, dtype=np.int64)
+    gyro = np.zeros((t.size, 3))
+    gyro[:, 0] = 0.1 + 0.3 * (-1.0) ** np.arange(t.size)  # a constant rate under alternating vibration
+    acc = np.tile([0.0, 0.0, -9.8], (t.size, 1))
+    dt = np.full(t.size, 5000.0)
+    meta: dict = {}
+    # complete: nothing to put back
+    t2, g2, a2 = ulog_mod._fill_dropped(t, gyro, acc, dt, meta)
+    assert meta["imu_filled_samples"] == 0 and np.array_equal(t2, t) and np.array_equal(g2, gyro)
+    # throttled (4 ms means 100 ms apart, like esc_status_log): left as it is
+    sl = slice(None, None, 20)
+    t3, _, _ = ulog_mod._fill_dropped(t[sl], gyro[sl], acc[sl], np.full(t[sl].size, 4000.0), meta)
+    assert meta["imu_filled_samples"] == 0 and np.array_equal(t3, t[sl])
+    # 1 in 10 dropped: put back, and the integrated angle nearer the true one
+    keep = np.arange(t.size) % 10 != 5
+    t4, g4, _ = ulog_mod._fill_dropped(t[keep], gyro[keep], acc[keep], dt[keep], meta)
+    assert meta["imu_filled_samples"] == int((~keep).sum()) and np.array_equal(t4, t)
+    truth = float(np.sum(gyro[1:, 0]) * 0.005)
+    angle = lambda tt, g: float(np.sum(g[1:, 0] * np.diff(tt) * 1e-6))  # noqa: E731
+    # the local mean is off by the vibration's amplitude, the next sample by twice it
+    assert abs(angle(t4, g4) - truth) < 0.55 * abs(angle(t[keep], gyro[keep]) - truth)
+
+
+def test_ulog_esc_is_not_filled(ulog_esc: Recording) -> None:
+    assert ulog_esc.meta["imu_filled_samples"] == 0  # logged at ~10 Hz: 4 ms means, not a full-rate topic
 
 
 def test_ulog61_static_start_reads_minus_g_on_body_down(ulog61: Recording) -> None:

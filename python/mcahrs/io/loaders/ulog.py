@@ -6,7 +6,10 @@ Topics read (multi-instance 0):
   ``accelerometer_m_s2``, body FRD, SI, board rotation and calibration already applied by PX4.
   Each value is the mean over ``*_integral_dt`` ending at ``timestamp``; ``t_us`` is that
   ``timestamp``. Rows whose ``accelerometer_timestamp_relative`` is PX4's "invalid" marker are
-  dropped; a non-zero relative accel time is reported in ``meta`` but not resampled.
+  dropped; a non-zero relative accel time is reported in ``meta`` but not resampled. Samples
+  the logger dropped from a full-rate topic (time no sample's ``*_integral_dt`` covers) are put
+  back with the local mean rate and specific force (``_fill_dropped``; ``fill_dropped=False``
+  keeps the samples as logged).
 * GNSS ``vehicle_gps_position`` or ``sensor_gps`` (required): both field layouts
   (``lat``/``lon`` int 1e-7 deg and ``alt`` mm up to PX4 1.14; ``latitude_deg``/``longitude_deg``
   float64 deg and ``altitude_*_m`` from 1.15). Validity time ``t_us`` is ``timestamp_sample``
@@ -84,7 +87,52 @@ def _sw_version(info: dict) -> str:
     return str(info.get("ver_sw", "unknown"))
 
 
-def _load_imu(data: dict, source: str, meta: dict) -> np.ndarray:
+def _fill_dropped(
+    t: np.ndarray, gyro: np.ndarray, acc: np.ndarray, dt_us: np.ndarray, meta: dict
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Put back the samples the logger dropped from a full-rate IMU topic.
+
+    Each sample is the mean over its ``*_integral_dt`` ending at its time, so time that no
+    sample covers (``t_i - t_(i-1) - dt_i``, at least half the median ``dt``) is samples the
+    logger left out (log_61: 1106 next to its 14631, 7.3 % of the time; the flight controller's
+    filter had them). Left alone, the replay takes the next sample's rate over the gap too.
+    Each one is put back at its place, ``round(gap / median dt)`` samples ending at
+    ``t_i - dt_i``, with the mean of the two samples before the gap and the two after it: the
+    vibration averaged out (log_61's gyro has a lag-1 autocorrelation of -0.55 in flight, so a
+    neighbour alone is the worse guess). On log_61 the gyro alone, from EKF2's attitude and
+    bias, drifts from EKF2 by 0.83 degrees in 10 s with them, 1.73 without (worst of roll and
+    pitch, mean of 20 starts; ``docs/OUTLIERS.md``, session 30). Only a full-rate topic is
+    filled (median spacing within 1.5 median ``dt``): a throttled log (esc_status_log, 4 ms
+    means 104 ms apart) is left as it is. ``meta["imu_filled_samples"]`` counts them."""
+    med = float(np.median(dt_us))
+    meta["imu_filled_samples"] = 0
+    if t.size < 4 or not med > 0.0 or float(np.median(np.diff(t))) > 1.5 * med:
+        return t, gyro, acc
+    gap = (t[1:] - t[:-1]).astype(np.float64) - dt_us[1:]
+    n = np.where(gap >= 0.5 * med, np.rint(gap / med), 0.0).astype(np.int64)
+    after = np.flatnonzero(n) + 1  # the sample after each gap
+    if after.size == 0:
+        return t, gyro, acc
+    counts = n[after - 1]
+    rank = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)  # 0..n-1 in a gap
+    at = np.repeat(after, counts)
+    end = t[at] - np.rint(dt_us[at]).astype(np.int64)
+    start = t[at - 1]
+    k = np.repeat(counts, counts)
+    t_new = start + np.rint((end - start) * (rank + 1) / k).astype(np.int64)
+    near = np.clip(at[:, None] + np.arange(-2, 2)[None, :], 0, t.size - 1)
+    g_new, a_new = gyro[near].mean(axis=1), acc[near].mean(axis=1)
+    ok = (t_new > start) & (t_new < t[at])
+    meta["imu_filled_samples"] = int(ok.sum())
+    order = np.argsort(np.concatenate([t, t_new[ok]]), kind="stable")
+    return (
+        np.concatenate([t, t_new[ok]])[order],
+        np.concatenate([gyro, g_new[ok]])[order],
+        np.concatenate([acc, a_new[ok]])[order],
+    )
+
+
+def _load_imu(data: dict, source: str, meta: dict, fill_dropped: bool = True) -> np.ndarray:
     t = np.asarray(data["timestamp"]).astype(np.int64)
     ts = _nonzero_field(data, "timestamp_sample")
     if ts is not None:
@@ -102,16 +150,19 @@ def _load_imu(data: dict, source: str, meta: dict) -> np.ndarray:
     idx = sel[order]
     meta["imu_dropped_duplicate_time"] = ndup
     need(idx.size >= 2, source, f"topic {IMU_TOPIC!r} has fewer than 2 usable samples")
+    t, gyro, acc = t[idx], gyro[idx], acc[idx]
     if "gyro_integral_dt" in data:
         dt = np.asarray(data["gyro_integral_dt"], np.float64)
         # PX4 <= 1.6 logged the integral dt as float seconds, later as uint32 microseconds.
-        dt_us = dt * 1e6 if np.asarray(data["gyro_integral_dt"]).dtype.kind == "f" else dt
+        dt_us = (dt * 1e6 if np.asarray(data["gyro_integral_dt"]).dtype.kind == "f" else dt)[idx]
         meta["imu_integral_dt_median_us"] = float(np.median(dt_us))
+        if fill_dropped:
+            t, gyro, acc = _fill_dropped(t, gyro, acc, dt_us, meta)
     if "gyro_clipping" in data:
         meta["imu_gyro_clipping_samples"] = int(np.count_nonzero(np.asarray(data["gyro_clipping"])))
     if "accelerometer_clipping" in data:
         meta["imu_accel_clipping_samples"] = int(np.count_nonzero(np.asarray(data["accelerometer_clipping"])))
-    return imu_array_from(t[idx], gyro[idx], acc[idx], source)
+    return imu_array_from(t, gyro, acc, source)
 
 
 def _load_gnss(data: dict, topic: str, source: str, gps_delay_us: int, meta: dict) -> np.ndarray:
@@ -255,7 +306,11 @@ def _load_ref(d: dict, source: str, meta: dict) -> np.ndarray:
 
 
 def load_ulog(
-    path: str | Path, *, gps_topic: str | None = None, gps_delay_us: int | None = None
+    path: str | Path,
+    *,
+    gps_topic: str | None = None,
+    gps_delay_us: int | None = None,
+    fill_dropped: bool = True,
 ) -> Recording:
     """Load a PX4 ULog file.
 
@@ -264,6 +319,8 @@ def load_ulog(
     get the fix validity time when the topic has no usable ``timestamp_sample``. Default: the
     receiver latency the autopilot itself was configured with (``EKF2_GPS_DELAY``, recorded in
     the log: a fact of the recording, not a tuning), else 0; ``meta["gps_delay_us_applied"]``.
+    ``fill_dropped`` puts back the IMU samples the logger dropped (``_fill_dropped``; False: the
+    samples as logged).
     Raises :class:`LoaderError` when the file is unreadable or a required topic is missing.
     """
     from pyulog import ULog  # local import: pyulog is only needed for ULog files
@@ -314,7 +371,7 @@ def load_ulog(
         "mounting": "none applied here (already in body FRD)",
     }
     imu_data = ds[(IMU_TOPIC, 0)]
-    imu = _load_imu(imu_data, source, meta)
+    imu = _load_imu(imu_data, source, meta, fill_dropped)
     gdata = ds[(gps_topic, 0)]
     gnss = _load_gnss(gdata, gps_topic, source, gps_delay_us, meta)
     if "time_utc_usec" in gdata:
