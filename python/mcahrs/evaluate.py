@@ -714,6 +714,10 @@ def evaluate(rec: Recording, preset: str = "auto", *, path: str | Path | None = 
             "results shown for completeness, goals not assessed"
         )
 
+    filled = int(rec.meta.get("imu_filled_samples", 0))
+    if filled:
+        ev.notes.append(f"IMU: {filled} samples the logger dropped put back by the loader (the mean of "
+                        "the two before and the two after; the loader's fill_dropped)")
     if robust is not None and robust != "plain":
         if golden:
             ev.notes.append(f"robust profile {robust}: no golden-model comparison (the golden model "

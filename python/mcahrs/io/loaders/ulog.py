@@ -122,7 +122,7 @@ def _fill_dropped(
     t_new = start + np.rint((end - start) * (rank + 1) / k).astype(np.int64)
     near = np.clip(at[:, None] + np.arange(-2, 2)[None, :], 0, t.size - 1)
     g_new, a_new = gyro[near].mean(axis=1), acc[near].mean(axis=1)
-    ok = (t_new > start) & (t_new < t[at])
+    ok = (t_new > start) & (t_new < t[at]) & (end - start >= k)  # distinct, inside the gap
     meta["imu_filled_samples"] = int(ok.sum())
     order = np.argsort(np.concatenate([t, t_new[ok]]), kind="stable")
     return (
