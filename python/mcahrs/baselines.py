@@ -10,7 +10,7 @@ convention (ENU for VQF, NED for Fusion) does not matter.
 * **VQF** (``vqf`` package, the online C++ ``VQF`` class, causal like MCAHRS): gyro rad/s,
   specific force m/s^2, any body frame. It needs a constant sample time: ``Ts`` is the median
   IMU interval and a sample that closes a gap of ``k`` intervals is fed ``k`` times (the
-  ULog loader puts back the 5 ms samples a PX4 logger drops, so on log_61 there are none
+  ULog loader puts back the 5 ms samples missing from a PX4 log, so on log_61 there are none
   left). 9D when the recording has a magnetometer (``updateMag`` at each magnetometer
   sample, ``magTs`` its median interval), else 6D. VQF's magnetometer only turns heading
   (its 9D quaternion is the 6D one rotated about the vertical), so roll/pitch are the same.

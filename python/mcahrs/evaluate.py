@@ -523,7 +523,7 @@ REAL_RECEIVER_FLOORS = {"gps_pos_noise_min_m": 0.5, "gps_vel_noise_min_mps": 0.3
 # 0.35 sqrt(0.01 s)). The INS defaults are an IMU's white noise with margin, right for the
 # simulator; a vehicle's IMU also sees vibration, coning and scale-factor errors at its rates. On
 # the PX4 log with the defaults the fuzzy detector rejects 44 % of the fixes (the plain INS's
-# GNSS T 4.2 in the median; 16 with the IMU samples the logger dropped left out); with these T is
+# GNSS T 4.2 in the median; 16 without the log's missing IMU samples put back); with these T is
 # 1.5 and it rejects none (tests/python/test_ins.py).
 REAL_IMU_NOISE = {"gyro_noise_rps": 1.5e-3, "accel_noise_mps2": 3.5e-2}
 
@@ -716,7 +716,7 @@ def evaluate(rec: Recording, preset: str = "auto", *, path: str | Path | None = 
 
     filled = int(rec.meta.get("imu_filled_samples", 0))
     if filled:
-        ev.notes.append(f"IMU: {filled} samples the logger dropped put back by the loader (the mean of "
+        ev.notes.append(f"IMU: {filled} samples missing from the log put back by the loader (the mean of "
                         "the two before and the two after; the loader's fill_dropped)")
     if robust is not None and robust != "plain":
         if golden:

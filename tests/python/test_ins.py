@@ -526,7 +526,7 @@ def test_real_imu_noise_keeps_the_robust_mode_on_the_px4_log() -> None:
     """The INS defaults' IMU noise is a datasheet's with margin; a multirotor's IMU also sees
     vibration and errors at 100 deg/s. With it (and EKF2's receiver floors) the fuzzy detector on
     the PX4 log rejects 44 % of the real fixes; with EKF2's IMU noise as well
-    (mcahrs.evaluate.REAL_INS) it rejects none. The IMU samples the logger dropped (7.3 % of the
+    (mcahrs.evaluate.REAL_INS) it rejects none. The IMU samples missing from the log (7.3 % of the
     time, put back by the loader since session 30) were most of what the datasheet noise could not
     explain: with them left out the plain INS's GNSS T was 16 in the median, 4 with them."""
     if not ULOG61.exists():

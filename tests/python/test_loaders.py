@@ -168,7 +168,7 @@ def ulog61() -> Recording:
 
 @pytest.fixture(scope="module")
 def ulog61_logged() -> Recording:
-    """log_61's samples as logged, without the ones the logger dropped put back."""
+    """log_61's samples as logged, without the missing ones put back."""
     return load(_need(ULOG61), fill_dropped=False)
 
 
@@ -221,7 +221,7 @@ def test_ulog61_dropped_samples_are_put_back_where_no_sample_covers(
     ulog61: Recording, ulog61_logged: Recording
 ) -> None:
     """Each logged sample is the mean over gyro_integral_dt ending at its time; time no sample
-    covers is samples the logger dropped. Counted here from the raw topic, independently."""
+    covers is samples the log lacks. Counted here from the raw topic, independently."""
     from pyulog import ULog
 
     raw = ULog(str(ULOG61), ["sensor_combined"]).data_list[0].data

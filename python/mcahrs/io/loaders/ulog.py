@@ -7,7 +7,7 @@ Topics read (multi-instance 0):
   Each value is the mean over ``*_integral_dt`` ending at ``timestamp``; ``t_us`` is that
   ``timestamp``. Rows whose ``accelerometer_timestamp_relative`` is PX4's "invalid" marker are
   dropped; a non-zero relative accel time is reported in ``meta`` but not resampled. Samples
-  the logger dropped from a full-rate topic (time no sample's ``*_integral_dt`` covers) are put
+  missing from a full-rate topic (time no sample's ``*_integral_dt`` covers) are put
   back with the local mean rate and specific force (``_fill_dropped``; ``fill_dropped=False``
   keeps the samples as logged).
 * GNSS ``vehicle_gps_position`` or ``sensor_gps`` (required): both field layouts
@@ -90,12 +90,13 @@ def _sw_version(info: dict) -> str:
 def _fill_dropped(
     t: np.ndarray, gyro: np.ndarray, acc: np.ndarray, dt_us: np.ndarray, meta: dict
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Put back the samples the logger dropped from a full-rate IMU topic.
+    """Put back the samples missing from a full-rate IMU topic.
 
     Each sample is the mean over its ``*_integral_dt`` ending at its time, so time that no
     sample covers (``t_i - t_(i-1) - dt_i``, at least half the median ``dt``) is samples the
-    logger left out (log_61: 1106 next to its 14631, 7.3 % of the time; the flight controller's
-    filter had them). Left alone, the replay takes the next sample's rate over the gap too.
+    log lacks (log_61: 1106 next to its 14631, 7.3 % of the time; the ULog records no logger
+    dropout, so the logged ``sensor_combined`` itself skipped them, while EKF2 integrates each
+    IMU's own ``vehicle_imu``). Left alone, the replay takes the next sample's rate over the gap too.
     Each one is put back at its place, ``round(gap / median dt)`` samples ending at
     ``t_i - dt_i``, with the mean of the two samples before the gap and the two after it: the
     vibration averaged out (log_61's gyro has a lag-1 autocorrelation of -0.55 in flight, so a
@@ -319,7 +320,7 @@ def load_ulog(
     get the fix validity time when the topic has no usable ``timestamp_sample``. Default: the
     receiver latency the autopilot itself was configured with (``EKF2_GPS_DELAY``, recorded in
     the log: a fact of the recording, not a tuning), else 0; ``meta["gps_delay_us_applied"]``.
-    ``fill_dropped`` puts back the IMU samples the logger dropped (``_fill_dropped``; False: the
+    ``fill_dropped`` puts back the IMU samples missing from the log (``_fill_dropped``; False: the
     samples as logged).
     Raises :class:`LoaderError` when the file is unreadable or a required topic is missing.
     """
