@@ -1208,6 +1208,23 @@ def _load(path: str, **kw: Any) -> Recording:
     return load(path, **kw)
 
 
+IMU_AS_LOGGED_HELP = ("ULog only: the IMU samples as logged (default: the loader puts back the samples "
+                      "missing from a full-rate topic)")
+
+
+def _is_ulog(path: str) -> bool:
+    return str(path).lower().endswith((".ulg", ".ulog"))
+
+
+def _as_logged(path: str, as_logged: bool) -> dict[str, bool]:
+    """The loader keyword of ``--imu-as-logged``; ValueError on a recording that is not a ULog."""
+    if not as_logged:
+        return {}
+    if not _is_ulog(path):
+        raise ValueError("--imu-as-logged applies to ULog files only")
+    return {"fill_dropped": False}
+
+
 def main_evaluate(argv: list[str] | None = None) -> int:
     """``mcahrs evaluate LOG [--preset ...] [--plot DIR] [--csv FILE] [--start S --duration S]``."""
     ap = argparse.ArgumentParser(prog="mcahrs evaluate",
@@ -1232,6 +1249,7 @@ def main_evaluate(argv: list[str] | None = None) -> int:
                     help="the MCAHRS runs in this robust profile (mcahrs.core.robust_profile; default plain)")
     ap.add_argument("--gps-delay-ms", type=float, default=None, metavar="MS",
                     help="ULog only: fix validity = publication time - MS (default: the loader's, 0)")
+    ap.add_argument("--imu-as-logged", action="store_true", help=IMU_AS_LOGGED_HELP)
     args = ap.parse_args(argv)
     from mcahrs.io.loaders import LoaderError
 
@@ -1242,8 +1260,9 @@ def main_evaluate(argv: list[str] | None = None) -> int:
         return 2
     kw = {} if args.gps_delay_ms is None else {"gps_delay_us": int(round(args.gps_delay_ms * 1e3))}
     try:
-        if kw and not str(args.log).lower().endswith((".ulg", ".ulog")):
+        if kw and not _is_ulog(args.log):
             raise ValueError("--gps-delay-ms applies to ULog files only")
+        kw |= _as_logged(args.log, args.imu_as_logged)
         rec = cut_recording(_load(args.log, **kw), args.start, args.duration)
     except (LoaderError, ValueError, OSError) as exc:
         print(f"mcahrs evaluate: {exc}", file=sys.stderr)
@@ -1306,11 +1325,13 @@ def main_convert(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", required=True, metavar="STREAM", help="output file")
     ap.add_argument("--start", type=float, default=None, metavar="S")
     ap.add_argument("--duration", type=float, default=None, metavar="S")
+    ap.add_argument("--imu-as-logged", action="store_true", help=IMU_AS_LOGGED_HELP)
     args = ap.parse_args(argv)
     from mcahrs.io.loaders import LoaderError
 
     try:
-        rec = cut_recording(_load(args.log), args.start, args.duration)
+        kw = _as_logged(args.log, args.imu_as_logged)
+        rec = cut_recording(_load(args.log, **kw), args.start, args.duration)
         info = convert(rec, args.out)
     except (LoaderError, ValueError, OSError) as exc:
         print(f"mcahrs convert: {exc}", file=sys.stderr)

@@ -314,6 +314,30 @@ def test_evaluate_without_reference_reports_stop_tilt(tmp_path: Path, capsys: py
     assert len(list(tmp_path.glob("*.png"))) == 3
 
 
+def test_imu_as_logged_keeps_the_logs_samples_and_is_ulog_only(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """``--imu-as-logged``: the ULog's IMU samples as logged, without the missing ones the loader
+    puts back (evaluate and convert); any other recording is a usage error."""
+    ulog = ULOG61
+    _need(ulog)
+    _need(COMMA)
+    args = ["--start", "10", "--duration", "10", "--no-golden"]
+    assert main_evaluate([str(ulog), *args]) == 0
+    filled = capsys.readouterr().out
+    assert main_evaluate([str(ulog), *args, "--imu-as-logged"]) == 0
+    logged = capsys.readouterr().out
+    n_filled, n_logged = (int(o.split("\nIMU ")[1].split(" samples")[0]) for o in (filled, logged))
+    assert "samples missing from the log put back" in filled and "put back" not in logged
+    assert n_logged < n_filled < 1.1 * n_logged  # 10 s at 200 Hz: about 150 of 2000 missing
+    out = tmp_path / "s.txt"
+    assert main_convert([str(ulog), "--out", str(out), "--duration", "5", "--imu-as-logged"]) == 0
+    capsys.readouterr()
+    assert main_evaluate([str(COMMA), "--imu-as-logged"]) == 2
+    assert main_convert([str(COMMA), "--out", str(out), "--imu-as-logged"]) == 2
+    assert "applies to ULog files only" in capsys.readouterr().err
+
+
 def test_evaluate_bad_path_is_a_usage_error(capsys: pytest.CaptureFixture) -> None:
     assert main_evaluate([str(ROOT / "no_such_recording.ulg")]) == 2
     assert "no such file" in capsys.readouterr().err
