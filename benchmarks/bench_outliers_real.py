@@ -164,6 +164,9 @@ def bench_recording(path: Path, seed: int, fix_rate_hz: float | None = None) -> 
         f"{t_fix[-1] - t0_fix:.0f} s; {'a' if ref is not None else 'no'} reference attitude; "
         f"faults at {', '.join(f'{s:.0f}' for s in starts)} s) ==="
     )
+    filled = int(rec.meta.get("imu_filled_samples", 0))
+    if filled:
+        print(f"IMU: {filled} samples missing from the log put back by the loader (mcahrs.io.loaders.ulog)")
     rng = np.random.default_rng(seed)
     plans = []
     for name, dur, pos, vel in FAULTS:
