@@ -334,17 +334,32 @@ static void axis_predict(mca_cs_axis_t *ax, float t, const mca_cs_inc_t *inc)
     axis_predict_with(ax, t, mca_cs_maneuver_var(&ax->cfg, ax->x[2]) /* eq. 16: abar = a_hat */, phi, q1, inc);
 }
 
-static int same(float a, float b)
+/* Bit equality of two float arrays (a -0 and a +0 differ, as they may in what follows). */
+static int same_bits(const float *a, const float *b, size_t n)
 {
-    return !(a < b) && !(a > b);
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t ua, ub;
+        memcpy(&ua, &a[i], sizeof ua);
+        memcpy(&ub, &b[i], sizeof ub);
+        if (ua != ub) {
+            return 0;
+        }
+    }
+    return 1;
 }
 
+/* The model fields, the first five of a configuration, are floats with no padding between. */
+typedef char mca_cs_model_fields_ok[(offsetof(mca_cs_config_t, tau_a_s) == 0u &&
+                                     offsetof(mca_cs_config_t, sigma_v_mps) == 4u * sizeof(float))
+                                        ? 1
+                                        : -1];
+
 /* 1 when mca_cs_transition gives the same Phi and Q for a and b at any T and s2: the fields it
- * reads are equal. */
+ * reads (tau_a, tau_p, tau_v, sigma_p, sigma_v) have the same bits. Equal values that differ in
+ * bits (+0 and -0) only cost a transition computed again. */
 static int same_model(const mca_cs_config_t *a, const mca_cs_config_t *b)
 {
-    return same(a->tau_a_s, b->tau_a_s) && same(a->tau_p_s, b->tau_p_s) &&
-           same(a->tau_v_s, b->tau_v_s) && same(a->sigma_p_m, b->sigma_p_m) && same(a->sigma_v_mps, b->sigma_v_mps);
+    return same_bits((const float *)(const void *)a, (const float *)(const void *)b, 5u);
 }
 
 mca_status_t mca_cs_axis_predict_aided(mca_cs_axis_t *ax, float t, const mca_cs_inc_t *inc)
@@ -544,20 +559,6 @@ void mca_cs3_predict_aided_nocheck(mca_cs3_t *cs, float t, const mca_cs_inc_t *c
 mca_status_t mca_cs3_predict(mca_cs3_t *cs, float t)
 {
     return mca_cs3_predict_aided(cs, t, NULL);
-}
-
-/* Bit equality of two float arrays (a -0 and a +0 differ, as they may in what follows). */
-static int same_bits(const float *a, const float *b, size_t n)
-{
-    for (size_t i = 0; i < n; ++i) {
-        uint32_t ua, ub;
-        memcpy(&ua, &a[i], sizeof ua);
-        memcpy(&ub, &b[i], sizeof ub);
-        if (ua != ub) {
-            return 0;
-        }
-    }
-    return 1;
 }
 
 /* Bit equality of two axes' covariances, read on the upper triangle: every writer of an axis'
