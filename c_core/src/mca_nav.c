@@ -20,6 +20,8 @@
 
 /* compile-time check: the shared scratch fits both updates */
 typedef char mca_nav_ws_fits_cs[(MCA_NAV_WS_LEN >= MCA_CS_WS_LEN) ? 1 : -1];
+/* the ring's head and count are uint8_t */
+typedef char mca_nav_hist_fits_u8[(MCA_HIST_LEN <= 255) ? 1 : -1];
 
 MCA_COLD void mca_nav_config_default(mca_nav_config_t *c)
 {
@@ -219,7 +221,7 @@ static void hist_accumulate(mca_nav_t *nav, const float f[3], uint32_t dt_us, in
         }
         memcpy(e->q_nb, nav->att.q_nb, sizeof(e->q_nb));
         e->saturated = nav->hist_sat;
-        nav->hist_head = (uint16_t)((nav->hist_head + 1u) % MCA_HIST_LEN);
+        nav->hist_head = (uint8_t)((nav->hist_head + 1u) % MCA_HIST_LEN);
         if (nav->hist_count < MCA_HIST_LEN) {
             nav->hist_count++;
         }
@@ -1102,9 +1104,9 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
     }
     const int has_alt = fv.has_alt != 0u;
     mca_status_t st = MCA_OK;
-    if (!nav->home_set) {
+    if ((nav->flags & MCA_FLAG_HOME_SET) == 0u) { /* (a sticky bit of flags) */
         mca_geo_set_home_nocheck(&nav->home, fix->lat_e7, fix->lon_e7, has_alt ? fix->alt_mm : 0);
-        nav->home_set = 1u;
+        nav->flags |= MCA_FLAG_HOME_SET;
         if (!(nav->cfg.gravity_mps2 > 0.0f)) {
             const float lat = (float)fix->lat_e7 * 1.74532925199433e-9f;
             nav->g_mps2 = mca_geo_gravity(lat, (float)nav->home.alt_mm * 1e-3f);
@@ -1217,7 +1219,6 @@ void mca_nav_output(const mca_nav_t *nav, mca_nav_output_t *out)
     }
     out->rp_t = nav->n_grav_obs != 0u ? nav->att.rs.t_stat : NAN; /* its memory's T, the last observation's */
     f |= nav->aligned ? (uint32_t)MCA_FLAG_ALIGNED : 0u;
-    f |= nav->home_set ? (uint32_t)MCA_FLAG_HOME_SET : 0u;
     f |= gps_lost(nav, nav->t_imu_us) ? (uint32_t)MCA_FLAG_GPS_LOST : 0u;
     if (yaw_unobserved(nav)) {
         f |= MCA_FLAG_YAW_UNOBSERVED;

@@ -127,11 +127,13 @@ typedef struct {
     float hist_f_sum[3];     /**< accumulator of the entry being built */
     uint32_t hist_acc_us;    /**< time accumulated in it */
     uint16_t hist_n;         /**< samples in it */
-    uint16_t hist_head;      /**< next slot to write */
-    uint16_t hist_count;     /**< entries written, up to MCA_HIST_LEN */
+    uint8_t hist_head;       /**< next slot to write */
+    uint8_t hist_count;      /**< entries written, up to MCA_HIST_LEN */
     uint8_t hist_sat;        /**< saturated sample in the entry being built */
     uint8_t hist_dt_q;       /**< the ring's spacing in 250 us units, MCA_HIST_DT_US to
-                                  MCA_HIST_DT_MAX_US (ALGORITHMS.md 8; in a padding byte) */
+                                  MCA_HIST_DT_MAX_US (ALGORITHMS.md 8) */
+    uint8_t step_hold;       /**< velocity step test: fixes the anchor has been held for (0: the last fix is it) */
+    uint8_t step_flags;      /**< velocity step test: anchor, armed, tested, pre (mca_nav.c) */
     /** Before alignment the alignment's sums; after it the velocity step test's state (the test
      *  runs aligned only, ALGORITHMS.md 8, GPS step 3): one memory for both. */
     union {
@@ -154,20 +156,16 @@ typedef struct {
                                summed, and the time it spans (ALGORITHMS.md 8, GPS step 3) */
         } step;
     } u;
-    uint8_t init_still;      /**< every sample of the window was still */
-    uint8_t step_hold;       /**< velocity step test: fixes the anchor has been held for (0: the last fix is it) */
-    uint8_t step_flags;      /**< velocity step test: anchor, armed, tested, pre (mca_nav.c) */
-    uint8_t cog_gated;       /**< course observations not taken in a row, up to 10 (ALGORITHMS.md 7) */
     float g_mps2;
     float acc_comp_n[3];     /**< compensation acceleration of the last fix */
     float vel_prev[3];       /**< velocity of the last fix (at t_lastfix_us; differencing) */
     uint8_t prev_vel_mask;   /**< bit i: vel_prev[i] valid */
     uint8_t have_imu;
     uint8_t aligned;
-    uint8_t home_set;
     uint8_t have_fix;
     uint8_t have_mag_obs;
     uint8_t have_yaw_obs;
+    uint8_t cog_gated;       /**< course observations not taken in a row, up to 10 (ALGORITHMS.md 7) */
     uint8_t grav_pending;    /**< no-GPS observation made by the last IMU step, completed at the
                                   start of the next call (ALGORITHMS.md 8, IMU step 6): 0 none,
                                   1 update with grav_nu/rows/r, 2 skipped, 3 skipped (no history) */
