@@ -498,8 +498,11 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
     }
     const float g4 = mca_chi2_quantile(2u, MCA_CHI2_1E4);
     const float g = hold != 0u ? mca_chi2_quantile(2u, MCA_CHI2_5E3) : g4;
-    const float c_raw = 2.0f * fv->s_acc_mps * fv->s_acc_mps + var_h * t * t;
-    const float c = fv->s_acc_mps * fv->s_acc_mps + nav->u.step.var + var_h * t * t;
+    /* lambda, the variance scale (GPS step 3): C_u is configured for real sensors and receivers */
+    const float lam = 1.0f - nav->step_dlam;
+    const float c_raw = lam * (2.0f * fv->s_acc_mps * fv->s_acc_mps + var_h * t * t);
+    const float c_u = fv->s_acc_mps * fv->s_acc_mps + nav->u.step.var + var_h * t * t;
+    const float c = lam * c_u;
     /* No fix held: a step from an anchor that the anchor before it (carried on) agrees with is
      * the anchor's, a spike that passed its own test, not this fix's. Holding: a fix nearer the
      * held step than the anchor (s . s0 >= |s0|^2 / 2) still carries the fault, however the
@@ -512,12 +515,16 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
     const int fail = e2 > g * c ? hold != 0u || (nav->step_flags & STEP_PRE) == 0u || pp > g * c
                                 : hold != 0u && (2.0f * ds >= n0 || by_pos);
     /* the return: the reverse of the step that started the hold, within it the raw step, after a
-     * release with the fault still in the anchor's; its size against the held step unless the
-     * positions say the step (s0 is one fix against the anchor) */
+     * release with the fault still in the anchor's; at least 0.71 of the held step, and at most
+     * 1.5 times it unless the positions say the step (s0 is one fix against the anchor) */
     const float q = hold != 0u ? r2 : e2;
-    const int ret = fail && dot < 0.0f && dot * dot >= 0.5f * q * n0 && (by_pos || fabsf(q - 1.25f * n0) <= n0) &&
+    const int ret = fail && dot < 0.0f && dot * dot >= 0.5f * q * n0 && q >= 0.5f * n0 && (by_pos || q <= 2.25f * n0) &&
                     (hold != 0u ? r2 > g4 * c_raw : (nav->step_flags & STEP_ARMED) != 0u);
     nav->step_flags |= STEP_TESTED;
+    if (hold == 0u && e2 <= g * c) { /* lambda: the mean of |s|^2 / 2 C_u of fixes that pass on their own */
+        const float l = lam * (31.0f / 32.0f) + e2 / (64.0f * c_u);
+        nav->step_dlam = 1.0f - (l < 0.25f ? 0.25f : (l > 1.0f ? 1.0f : l));
+    }
     const int guard = rows ? hold < nav->cs.axis[0].cfg.robust.reject_reset_n : hold * t_us < STEP_HOLD_US;
     if (fail && !ret && guard) {
         if (hold == 0u) {

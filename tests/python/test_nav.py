@@ -497,19 +497,25 @@ def test_nogps_observation_completes_at_the_next_call() -> None:
     assert made >= 8 and completed_by_refused >= 4, f"{made} no-GPS observations made"
 
 
-def test_robust_modes_on_real_fixes_flag_nothing() -> None:
+def test_robust_modes_on_real_fixes_flag_almost_nothing() -> None:
     """On the real recordings the CS filter's test is conservative (T 0.04-0.16 in the median on
-    two rows, against 2 for a consistent filter): the fuzzy detector and FTA flag none of the
-    car's RTK fixes or the comma2k19 drive's, and leave the attitude the plain filter's, bit for
-    bit; so does fuzzy rows with the CS axes coasting (bench_outliers' fuzzy-rows): no row is left
-    out, nothing coasts. (IGG-III weighs rows on every fix and moves it: 0.7 deg on the car, 3.2 on
-    comma2k19.)"""
+    two rows, against 2 for a consistent filter). The velocity step test narrows its variance to
+    what it measures (ALGORITHMS.md 8, GPS step 3, lambda, at most 4 times), and these recordings'
+    |s|^2 has heavier tails than the chi-square: fuzzy rows (bench_outliers' fuzzy-rows, the CS
+    axes coasting) alarms on one of the car's 2197 RTK fixes (147.8 s) and one of comma2k19's 579
+    (19.9 s), and the roll/pitch observations it leaves out for tau_a after each move the attitude
+    0.23 and 0.71 deg off the plain filter's at most (measured; with lambda down to 1/8: 27 and 2
+    alarms). Before session 31 it flagged none and was the plain filter's bit for bit. The fuzzy
+    detector and FTA flag none of them; the step test's holds leave a course observation out, which
+    moves the fuzzy detector's attitude 0.001 deg at most (it was the plain filter's bit for bit).
+    (IGG-III weighs rows on every fix and moves it: 0.7 deg on the car, 3.2 on comma2k19.)"""
     from pathlib import Path
 
     from mcahrs.io.loaders import load
 
     data = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
-    for path in (data / "car", data / "comma2k19" / "comma2k19_example1"):
+    bits = core.FLAG_BITS["alarm_n"] | core.FLAG_BITS["alarm_e"]
+    for path, rp_max in ((data / "car", 0.3), (data / "comma2k19" / "comma2k19_example1", 0.8)):
         if not path.exists():
             pytest.skip(f"shared data not present: {path}")
         rec = load(path)
@@ -517,13 +523,16 @@ def test_robust_modes_on_real_fixes_flag_nothing() -> None:
         rate_hz = 1.0 / float(np.median(np.diff(rec.gnss["t_us"]) * 1e-6))
         rows = core.robust_profile("fuzzy-rows", rate_hz)
         out = core.replay(rec, core.nav_config("ground", **rows))
-        np.testing.assert_array_equal(out["euler_rad"], base, err_msg=f"{path.name} fuzzy rows")
+        alarms = int(np.sum((out["flags"][_fix_rows(out, rec.gnss)] & bits) != 0))
+        rp = float(np.degrees(np.abs(out["euler_rad"][:, :2] - base[:, :2])).max())
+        print(f"{path.name}: fuzzy rows {alarms} alarms of {len(rec.gnss)} fixes, {rp:.3f} deg off plain")
+        assert alarms <= 1, path.name
+        assert rp < rp_max, path.name
         for profile in ("fta", "fuzzy"):
             out = core.replay(rec, core.nav_config("ground", **core.robust_profile(profile)))
-            if profile == "fuzzy":
-                np.testing.assert_array_equal(out["euler_rad"], base, err_msg=f"{path.name} fuzzy")
-            else:  # FTA inflates a gain only above chi2(1e-4): on the car once or twice
-                assert np.degrees(np.abs(out["euler_rad"][:, :2] - base[:, :2])).max() < 0.5, path.name
+            d = np.degrees(np.abs(out["euler_rad"][:, :2] - base[:, :2])).max()
+            # FTA inflates a gain only above chi2(1e-4): on the car once or twice
+            assert d < (0.5 if profile == "fta" else 0.01), f"{path.name} {profile}"
 
 
 def _fix_rows(out: dict[str, np.ndarray], gnss: np.ndarray) -> np.ndarray:
@@ -869,6 +878,36 @@ def test_one_hz_fixes_get_the_imu_aided_test(name: str, preset: str, seed: int) 
     assert np.hypot(dv[:, 0], dv[:, 1])[sel].max() < 2.0
 
 
+@pytest.mark.parametrize(
+    ("name", "preset", "seed"),
+    [
+        ("multirotor_aggressive", "multirotor", 3),
+        ("car_accel_brake", "ground", 4),
+        ("fixedwing_turns", "fixedwing", 3),
+    ],
+)
+def test_one_hz_step_test_scales_its_variance_to_what_it_measures(name: str, preset: str, seed: int) -> None:
+    """ALGORITHMS.md 8, GPS step 3, the variance scale lambda: at 1 Hz the step test's configured
+    variance (the receiver's s_acc^2, the anchor's, and qa T^2 with qa set for real sensors) is 5-7
+    times the spread of |s|^2 it measures on these flights, and a 15 s, 1.2 m/s velocity burst
+    passed it: no fix alarmed, the fused velocity followed the burst 1.29 m/s off the outlier-free
+    run (measured before session 31, every vehicle). lambda, the mean of |s|^2 / 2 C_u over the
+    fixes that pass, narrows the test over the 150 clean fixes before the burst: every fix of it
+    alarms, none after it, none on the outlier-free run. The coast that then carries the velocity
+    drifts with the IMU over the 15 s: 1.05-1.08 m/s off on the multirotor and the car, 1.73 m/s
+    on the fixed-wing (measured), within the 2 m/s of the 1 Hz test above."""
+    rec, clean, clean_alarm, run, alarm, sel, after = _fuzzy_rows_fault(
+        name, preset, seed, 260.0, (150.0, 165.0, (0.0, 0.0), (0.72, -0.96)), (165.0, 185.0), gps_rate_hz=1.0
+    )
+    at_fix = _fix_rows(run, rec.gnss)
+    dv = run["vel_ned_mps"][at_fix, :2].astype(np.float64) - clean["vel_ned_mps"][at_fix, :2]
+    print(alarm[sel].mean(), alarm[after].sum(), np.hypot(dv[:, 0], dv[:, 1])[sel].max())
+    assert alarm[sel].all()
+    assert not alarm[after].any()
+    assert not clean_alarm.any()
+    assert np.hypot(dv[:, 0], dv[:, 1])[sel].max() < 2.0
+
+
 def test_velocity_step_test_holds_a_small_burst_to_its_end() -> None:
     """ALGORITHMS.md 8, GPS step 3, while holding: an 18 s velocity-only burst of 1.0 m/s on the
     simulated car stays alarmed to its end (measured: every fix) and is released at its first
@@ -957,13 +996,16 @@ def test_position_hold_keeps_a_small_position_burst_out_to_its_end(name: str, pr
 
 
 def test_velocity_step_test_blames_a_spike_that_passed_not_the_clean_fix_after_it() -> None:
-    """ALGORITHMS.md 8, GPS step 3, with no fix held: a velocity 0.5 m/s off on one fix passes its
-    own step test (the threshold is 0.66 m/s with s_acc 0.1), becomes the anchor, and the next fix,
-    0.2 m/s off the other way, steps 0.7 m/s from it. That fix agrees with the anchor before the
-    spike, so it is not held and nothing alarms (the simulator's velocity noise lowered to 0.01 m/s
-    so that the offsets are what the test sees). Without that rule (measured with it switched off
-    in the C) the clean fix was held, and every clean fix after it stood nearer the held step than
-    the anchor: 100 fixes alarmed, to the guard; before that hold rule, 2."""
+    """ALGORITHMS.md 8, GPS step 3, with no fix held: a velocity 0.3 m/s off on one fix passes its
+    own step test (the threshold is 0.33 m/s with s_acc 0.1 and the variance scale lambda at its
+    floor 1/4, the simulator's velocity noise lowered to 0.01 m/s so that the offsets are what the
+    test sees), becomes the anchor, and the next fix, 0.2 m/s off the other way, steps 0.5 m/s from
+    it. That fix agrees with the anchor before the spike, so it is not held and nothing alarms.
+    Without that rule (measured with it switched off in the C, session 20, with the spike and the
+    threshold twice these) the clean fix was held, and every clean fix after it stood nearer the
+    held step than the anchor: 100 fixes alarmed, to the guard; before that hold rule, 2. The 0.5
+    m/s spike of session 20, which passed the test before lambda (threshold 0.66 m/s), now alarms
+    on its own fix and nowhere else."""
     import dataclasses
 
     res = scenario("car_accel_brake", seed=4, duration_s=200.0, gps_vel_sigma_h_mps=0.01)
@@ -971,17 +1013,18 @@ def test_velocity_step_test_blames_a_spike_that_passed_not_the_clean_fix_after_i
     g = rec.gnss.copy()
     g["s_acc_mps"] = 0.1
     j = int(np.searchsorted(g["t_us"] * 1e-6, 150.0))
-    bad = g.copy()
-    v = bad["vel_ned_mps"].copy()
-    v[j, 0] -= 0.5
-    v[j + 1, 0] += 0.2
-    bad["vel_ned_mps"] = v
     profile = core.robust_profile("fuzzy-rows", res.params.gps_rate_hz)
     cfg = core.nav_config("ground", **{**profile, **_sim_receiver_model(res.params)})
     _, clean_alarm = _alarms_at_fixes(dataclasses.replace(rec, gnss=g), cfg)
-    _, alarm = _alarms_at_fixes(dataclasses.replace(rec, gnss=bad), cfg)
     assert not clean_alarm.any()
-    assert not alarm.any()
+    for spike, after, alarmed in ((-0.3, 0.2, []), (-0.5, 0.2, [j])):
+        bad = g.copy()
+        v = bad["vel_ned_mps"].copy()
+        v[j, 0] += spike
+        v[j + 1, 0] += after
+        bad["vel_ned_mps"] = v
+        _, alarm = _alarms_at_fixes(dataclasses.replace(rec, gnss=bad), cfg)
+        assert np.flatnonzero(alarm).tolist() == alarmed, spike
 
 
 def test_the_end_of_a_fault_the_cs_guard_took_in_restarts_the_cs() -> None:

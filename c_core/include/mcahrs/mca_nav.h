@@ -156,6 +156,8 @@ typedef struct {
                                summed, and the time it spans (ALGORITHMS.md 8, GPS step 3) */
         } step;
     } u;
+    float step_dlam;         /**< velocity step test: 1 - lambda, its variance scale (ALGORITHMS.md 8,
+                                  GPS step 3; 0 at init: lambda 1) */
     float g_mps2;
     float acc_comp_n[3];     /**< compensation acceleration of the last fix */
     float vel_prev[3];       /**< velocity of the last fix (at t_lastfix_us; differencing) */

@@ -19,7 +19,8 @@ checks, GPS step 4's numerically failed axis update and its end of a position fa
 in with its position reference, ALGORITHMS.md 7's course gate and its guard, GPS step 3's aid of N and E
 once any yaw observation was made (session 26), the step test's held fixes' positions in fuzzy rows
 (session 27), GPS step 4's position hold in fuzzy rows and section 5's rows applied beside the N/E pair's
-(session 28), the history ring's spacing, which follows the fixes, 20-50 ms (session 29), and step by step
+(session 28), the history ring's spacing, which follows the fixes, 20-50 ms (session 29), the step test's
+variance scale ``lambda`` and the return's size window's lower bound (session 31), and step by step
 against the C core in tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
@@ -166,6 +167,17 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     before). ``v_pre = v_p`` on every fix the test ran on and did not hold (the return and the fix
     after a hold included); a held fix keeps ``v_pre`` and *pre*. At step 7 nothing of the test is
     written before alignment (the anchor, *pre* and ``V_a`` stay; the test runs aligned only).
+    The variance scale ``lambda`` (session 31): 1 at construction (``mca_nav_init``; ``reset``, which
+    only the constructor calls), never reset by a CS (re-)initialisation, a gap, a restart or a
+    re-alignment. It is read at the test's start: ``C = lambda C_u``, ``C_u = s_acc^2 + V_a + qa T^2``,
+    ``C_r = lambda (2 s_acc^2 + qa T^2)``, and every comparison with ``k C`` or a ``C_r`` uses the
+    scaled ones (the fail test, the anchor before's agreement, the return's raw step back, *armed*);
+    the positions' ``V_e`` (choice 27) is not scaled. After the test, on a fix with no fix held at its
+    start (``n = 0``) and ``|s|^2 <= k C`` (it passes on its own, so is neither held nor the return),
+    ``lambda = min(1, max(1/4, (31/32) lambda + |s|^2 / (64 C_u)))`` from that fix's ``|s|^2`` and
+    ``C_u``, in float64 (the C's float32 arithmetic is not modelled). A fix the test does not run on
+    leaves it as it was. The return's size window: ``q >= 0.5 |s0|^2`` always, ``q <= 2.25 |s0|^2``
+    unless the positions say the held step (choice 27).
 21. The N/E pair (section 5) is formed when N and E both run fuzzy rows, both have a prior and both
     take position and velocity; each plan is ``robust.fuzzy_rows_failed`` on the axis' memory (read
     only), and a held fix's velocity rows are added to both pairs. A plan whose test fails
@@ -294,9 +306,10 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     ``cs_h``'s ``sigma_p_m``, ``tau_p_s``. With ``e = 0``, ``t_e = 0`` (nothing summed) it never fails
     (``V_e > 0``): the hold's second fix sees nothing summed, so the positions speak from its third fix
     (one interval summed) on. Such a fix is the return when, on ``r``, ``u . s0 < 0``, ``(u . s0)^2 >=
-    0.5 q |s0|^2`` and ``|r|^2 > chi2_2(1e-4) C_r`` hold, the size window ``0.25 |s0|^2 <= q <= 2.25
-    |s0|^2`` not asked ("unless the positions say the held step": both conditions above); a fix that
-    fails only by the other rules keeps the window. The sum, "after the test" (step 3, before the
+    0.5 q |s0|^2``, ``q >= 0.5 |s0|^2`` and ``|r|^2 > chi2_2(1e-4) C_r`` (``C_r`` scaled by ``lambda``,
+    choice 20) hold, the window's upper bound ``q <= 2.25 |s0|^2`` not asked ("unless the positions say
+    the held step": both conditions above; the lower bound holds either way, session 31); a fix that
+    fails only by the other rules keeps the whole window. The sum, "after the test" (step 3, before the
     predict and the CS update of step 4; a fix the gap re-initialises skips the test and is not held),
     on a fix the test held (``h = n > 0`` after it; a held fix is aligned, the test runs aligned only):
     the hold's first (``h = 1``) sets ``e = 0``, ``t_e = 0`` and adds nothing; each one after it (``h >
@@ -709,6 +722,9 @@ class _StepTest:
     t_e: float = 0.0
     # the test judged this fix the fault's end: the return, or the first fix after a hold, disarmed
     ended: bool = False
+    # the variance scale (session 31): 1 at mca_nav_init, kept through CS restarts and re-alignments;
+    # C and C_r are scaled by it, in [1/4, 1] (choice 20)
+    lam: float = 1.0
 
 
 @dataclass
@@ -1599,7 +1615,10 @@ class Nav:
         disarmed release is the fault's end (``vst.ended``: the CS restarts from it when step 6 then
         flags the fix, choice 23). In fuzzy rows a fix also fails while holding when the held fixes'
         positions say the held step (``vst.e``, ``vst.t_e``; ``w`` the white part of this fix's ``h_acc``,
-        GPS step 4's receiver model), and such a fix's return needs no size window (choice 27)."""
+        GPS step 4's receiver model), and such a fix's return needs no upper bound on its size (choice
+        27). ``C`` and ``C_r`` are scaled by ``vst.lam``, read here and updated after the test from this
+        fix's ``|s|^2`` and ``C_u`` when no fix was held at its start and it passes on its own (choice 20,
+        session 31)."""
         st = self.vst
         st.ended = False
         cfg_h = self.cfg.cs_h
@@ -1619,8 +1638,12 @@ class Nav:
         s = v_fix - v_p
         r = v_fix - v_last - dv
         s_acc2 = fx.s_acc**2
-        C = s_acc2 + st.V_a + qa * T * T
-        C_r = 2.0 * s_acc2 + qa * T * T
+        # the variance scale, read before the test (ALGORITHMS.md 8 GPS step 3, session 31): every
+        # comparison with k C or C_r uses the scaled ones; the positions' V_e does not scale
+        lam = st.lam
+        C_u = s_acc2 + st.V_a + qa * T * T
+        C = lam * C_u
+        C_r = lam * (2.0 * s_acc2 + qa * T * T)
         k = chi2_quantile(STEP_LEVEL_FAIL if st.n == 0 else STEP_LEVEL_HELD, 2)
         ss, rr = float(s @ s), float(r @ r)
         holding = st.n > 0
@@ -1641,8 +1664,10 @@ class Nav:
             fails = ss > k * C and not (st.pre and float(d_pre @ d_pre) <= k * C)
         u, q = (r, rr) if holding else (s, ss)
         us0 = float(u @ st.s0)
-        # the size window is not asked when the positions say the held step (s0 may be off the fault)
-        sized = positions or 0.25 * s0n <= q <= 2.25 * s0n
+        # the size window (ALGORITHMS.md 8 GPS step 3): q >= 0.5 |s0|^2 always (with C_r scaled, a raw
+        # step half the held one's size inside a burst passed for its end, session 31); q <= 2.25 |s0|^2
+        # unless the positions say the held step (s0 may be off the fault)
+        sized = q >= 0.5 * s0n and (positions or q <= 2.25 * s0n)
         reverse = us0 < 0.0 and us0 * us0 >= 0.5 * q * s0n and sized
         stepped_back = rr > chi2_quantile(STEP_LEVEL_FAIL, 2) * C_r
         is_return = fails and reverse and (stepped_back if holding else st.armed)
@@ -1670,6 +1695,11 @@ class Nav:
                 if rows_mode:  # the alarm releases at the first clean fix
                     for ax in (n_ax, e_ax):
                         ax.mem.d_k = min(ax.mem.d_k, 1.0)
+        # after the test, with no fix held at its start and the fix passing on its own (not by the
+        # anchor before; a held fix returned above): the scale follows the mean of |s|^2 / (2 C_u)
+        # (ALGORITHMS.md 8 GPS step 3, session 31), in float64
+        if not holding and ss <= k * C:
+            st.lam = min(1.0, max(1.0 / 4.0, (31.0 / 32.0) * lam + ss / (64.0 * C_u)))
         st.n = 0
         st.v_pre = v_p  # every fix not held
         return True, False
