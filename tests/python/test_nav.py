@@ -850,14 +850,15 @@ def _fuzzy_rows_fault(
     return rec, clean, clean_alarm, run, alarm, sel, (t_s >= after[0]) & (t_s < after[1])
 
 
-@pytest.mark.parametrize(
-    ("name", "preset", "seed"),
-    [
-        ("multirotor_aggressive", "multirotor", 3),
-        ("car_accel_brake", "ground", 4),
-        ("fixedwing_turns", "fixedwing", 3),
-    ],
-)
+# the simulated flights of the 1 Hz tests: scenario, preset, seed
+ONE_HZ_FLIGHTS = [
+    ("multirotor_aggressive", "multirotor", 3),
+    ("car_accel_brake", "ground", 4),
+    ("fixedwing_turns", "fixedwing", 3),
+]
+
+
+@pytest.mark.parametrize(("name", "preset", "seed"), ONE_HZ_FLIGHTS)
 def test_one_hz_fixes_get_the_imu_aided_test(name: str, preset: str, seed: int) -> None:
     """ALGORITHMS.md 8, history ring and GPS step 3: the ring's spacing follows the fixes, 27.5 ms at
     1 Hz with the simulator's 0.1 s latency (47 intervals, 1.29 s), so a 1 Hz fix gets the IMU-aided
@@ -878,14 +879,7 @@ def test_one_hz_fixes_get_the_imu_aided_test(name: str, preset: str, seed: int) 
     assert np.hypot(dv[:, 0], dv[:, 1])[sel].max() < 2.0
 
 
-@pytest.mark.parametrize(
-    ("name", "preset", "seed"),
-    [
-        ("multirotor_aggressive", "multirotor", 3),
-        ("car_accel_brake", "ground", 4),
-        ("fixedwing_turns", "fixedwing", 3),
-    ],
-)
+@pytest.mark.parametrize(("name", "preset", "seed"), ONE_HZ_FLIGHTS)
 def test_one_hz_step_test_scales_its_variance_to_what_it_measures(name: str, preset: str, seed: int) -> None:
     """ALGORITHMS.md 8, GPS step 3, the variance scale lambda: at 1 Hz the step test's configured
     variance (the receiver's s_acc^2, the anchor's, and qa T^2 with qa set for real sensors) is 5-7
