@@ -796,8 +796,10 @@ def scenario_nav_outliers(receiver_model: bool = False) -> VecWriter:
     """Fixed-wing turns under GNSS faults with the fuzzy-rows profile on the CS axes (the N/E pair,
     coasting; docs/ALGORITHMS.md 5) and fuzzy-reject on the attitude filter: a 20 m position burst
     at an azimuth of 20 degrees (N 18.8 m, E 6.8 m), a 2 m/s velocity burst, a burst of both, a
-    single velocity spike, and a 1.5 m/s north velocity burst whose first fix the three-threshold
-    rule does not alarm on (T < TD3) and fuzzy rows' gate leaves out."""
+    single velocity spike, a 1.5 m/s north velocity burst whose first fix the three-threshold
+    rule does not alarm on (T < TD3) and fuzzy rows' gate leaves out, and a 0.6 m/s burst at 45
+    degrees that the velocity step test holds only with its variance scaled to what it measured
+    (lambda, docs/ALGORITHMS.md 8, GPS step 3: the outputs differ from the C without it)."""
     rng = np.random.default_rng(7007)
     tr = make_truth(
         IMU_DT,
@@ -818,6 +820,7 @@ def scenario_nav_outliers(receiver_model: bool = False) -> VecWriter:
 
     burst(4.0, 5.0, 20.0, 0.0, 20.0)
     burst(5.5, 6.5, 0.0, 2.0, 200.0)
+    burst(6.6, 6.9, 0.0, 0.6, 45.0)
     burst(7.0, 7.6, 15.0, 1.5, 120.0)
     burst(8.0, 8.05, 0.0, 3.0, 300.0)
     burst(8.3, 8.8, 0.0, 1.5, 0.0)
