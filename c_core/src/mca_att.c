@@ -54,7 +54,7 @@ MCA_COLD mca_status_t mca_att_init(mca_att_t *att, const mca_att_config_t *cfg, 
 MCA_COLD void mca_att_init_nocheck(mca_att_t *att, const mca_att_config_t *cfg, const float q_nb[4], const float bias[3])
 {
     mca_zero_bytes(att, sizeof(*att));
-    att->cfg = *cfg;
+    mca_copy_bytes(&att->cfg, cfg, sizeof(att->cfg));
     att->sin_max_tilt = mca_sinf(cfg->max_tilt_obs_rad);
     memcpy(att->q_nb, q_nb, sizeof(att->q_nb));
     mca_quat_normalize(att->q_nb);
@@ -65,7 +65,7 @@ MCA_COLD void mca_att_init_nocheck(mca_att_t *att, const mca_att_config_t *cfg, 
     att->p[21] = cfg->bias0_var_rps2;
     att->p[28] = cfg->bias0_var_rps2;
     att->p[35] = cfg->bias0_var_rps2;
-    mca_robust_state_init(&att->rs);
+    att->rs.q_scale = 1.0f; /* the memory of mca_robust_state_init: the rest is zeroed above */
 }
 
 /* q_nb <- normalize(q_nb (x) q(rv)): the gyro step and the error-state correction. One copy for
@@ -247,7 +247,7 @@ static mca_status_t euler_update(mca_att_t *att, const float *e_rows, size_t m, 
         /* the tested update past its checks: the robust inputs are checked where they enter (init,
          * mca_att_update_gravity), the rest is this filter's own */
         st = mca_kf_update_tested_nocheck(dx, att->p, MCA_ATT_NX, h, nu, rm, m, robust ? &att->cfg.robust : NULL,
-                                          robust ? &att->rs : NULL, NULL, NULL, ws, rep);
+                                          robust ? &att->rs : NULL, NULL, NULL, ws, rep, NULL);
     }
     if (st == MCA_OK) {
         if (level_only) {

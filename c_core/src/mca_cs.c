@@ -58,7 +58,7 @@ static void axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m,
     ax->p[18] = cfg->sigma_p_m * cfg->sigma_p_m;
     ax->p[24] = cfg->sigma_v_mps * cfg->sigma_v_mps;
     ax->s2_m2ps4 = cfg->sigma_a0_mps2 * cfg->sigma_a0_mps2;
-    mca_robust_state_init(&ax->rs);
+    ax->rs.q_scale = 1.0f; /* the memory of mca_robust_state_init: the rest is zeroed above */
 }
 
 MCA_COLD mca_status_t mca_cs_axis_init(mca_cs_axis_t *ax, const mca_cs_config_t *cfg, float p0_m, float v0_mps)
@@ -115,8 +115,9 @@ static float series(const float *c, float x)
     return s;
 }
 
-/* mca_cs_singer_q with em1 = expm1(-alpha t) given (the transition has it already). */
-static void singer_q_em1(float alpha, float t, float s2, float em1, float q33[9])
+/* mca_cs_singer_q with em1 = expm1(-alpha t) given (the transition has it already), the 3 x 3
+ * block written at q with row stride n (3: Q33 itself; 5: the block of the transition's Q, no copy). */
+static void singer_q_em1(float alpha, float t, float s2, float em1, float *q, size_t n)
 {
     const float qc = 2.0f * alpha * s2; /* white-noise density of w_a */
     const float x = alpha * t;
@@ -142,20 +143,20 @@ static void singer_q_em1(float alpha, float t, float s2, float em1, float q33[9]
     }
     q23 = qc / (2.0f * alpha * alpha) * em1 * em1;
     q33v = -qc / (2.0f * alpha) * em2;
-    q33[0] = q11;
-    q33[1] = q12;
-    q33[2] = q13;
-    q33[3] = q12;
-    q33[4] = q22;
-    q33[5] = q23;
-    q33[6] = q13;
-    q33[7] = q23;
-    q33[8] = q33v;
+    q[0] = q11;
+    q[1] = q12;
+    q[2] = q13;
+    q[n] = q12;
+    q[n + 1u] = q22;
+    q[n + 2u] = q23;
+    q[2u * n] = q13;
+    q[2u * n + 1u] = q23;
+    q[2u * n + 2u] = q33v;
 }
 
 void mca_cs_singer_q(float alpha, float t, float s2, float q33[9])
 {
-    singer_q_em1(alpha, t, s2, mca_expm1f(-alpha * t), q33);
+    singer_q_em1(alpha, t, s2, mca_expm1f(-alpha * t), q33, 3u);
 }
 
 /* mca_cs_transition's entries that can be non-zero (A3 of Phi, its diagonal, Q's 3 x 3 block and
@@ -179,13 +180,7 @@ static void transition_nz(const mca_cs_config_t *cfg, float t, float s2, float p
     const float mb = mca_expm1f(-beta * t), mg = mca_expm1f(-gamma * t);
     phi[18] = 1.0f + mb;
     phi[24] = 1.0f + mg;
-    float q33[9];
-    singer_q_em1(alpha, t, s2, em1, q33);
-    for (size_t i = 0; i < 3u; ++i) {
-        for (size_t j = 0; j < 3u; ++j) {
-            q[i * 5u + j] = q33[i * 3u + j];
-        }
-    }
+    singer_q_em1(alpha, t, s2, em1, q, 5u);
     const float sp2 = cfg->sigma_p_m * cfg->sigma_p_m, sv2 = cfg->sigma_v_mps * cfg->sigma_v_mps;
     q[18] = -sp2 * (mb * (mb + 2.0f)); /* sigma_p^2 (1 - exp(-2 beta T)) */
     q[24] = -sv2 * (mg * (mg + 2.0f)); /* sigma_v^2 (1 - exp(-2 gamma T)) */
@@ -413,8 +408,8 @@ static void aid_test(const mca_cs_aid_t *aid, const float zq[MCA_CS_NZ], const f
 }
 
 /* mca_cs_axis_update on inputs its callers have checked (pointers, check_update); with gains
- * (plain mode, no report) through mca_kf_update_plain, which also returns the rows' gains (gains
- * may lie in ws past the update's own scratch, which is all the update is given). */
+ * (plain mode, no report) the update also returns the rows' gains, as mca_kf_update_plain does
+ * (gains may lie in ws past the update's own scratch, which is all the update is given). */
 MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float z_v, float r_p, float r_v,
                                              uint8_t mask, float *ws, mca_update_report_t *rep, float *gains)
 {
@@ -452,11 +447,9 @@ MCA_NOINLINE static mca_status_t axis_update(mca_cs_axis_t *ax, float z_p, float
     if (aided) {
         aid_test(&ax->aid, zq, rq, rows, m, nu_t, c_t);
     }
-    const mca_status_t su =
-        gains != NULL ? mca_kf_update_plain(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->rs, aided ? nu_t : NULL,
-                                            aided ? c_t : NULL, ws, MCA_KF_WS_LEN(MCA_CS_NX, MCA_CS_NZ), gains)
-                      : mca_kf_update_tested_nocheck(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust, &ax->rs,
-                                                     aided ? nu_t : NULL, aided ? c_t : NULL, ws, rep);
+    const mca_status_t su = mca_kf_update_tested_nocheck(ax->x, ax->p, MCA_CS_NX, h, z, r, m, &ax->cfg.robust,
+                                                         &ax->rs, aided ? nu_t : NULL, aided ? c_t : NULL, ws, rep,
+                                                         gains);
     if (su == MCA_OK) {
         ax->aid.valid = 0u;
         /* coasting (ALGORITHMS.md 2) while the velocity row is out or the update was rejected; a

@@ -37,10 +37,11 @@ mca_status_t mca_robust_inputs_check(const mca_robust_config_t *rc, const mca_ro
 
 /* mca_kf_update_tested past its pointer, size and robust-input checks (ws at least
  * MCA_KF_WS_LEN(n, m) floats); the finite checks of z, R, H and the test stay: they are what
- * refuses an overflowed covariance. */
+ * refuses an overflowed covariance. gains NULL, or (plain mode, a diagonal R, rep NULL: the
+ * row-by-row form, which writes them) the rows' gains as mca_kf_update_plain gives them. */
 mca_status_t mca_kf_update_tested_nocheck(float *x, float *p, size_t n, const float *h, const float *z,
                                           const float *r, size_t m, const mca_robust_config_t *rc,
                                           mca_robust_state_t *rs, const float *nu_t, const float *c_t, float *ws,
-                                          mca_update_report_t *rep);
+                                          mca_update_report_t *rep, float *gains);
 
 #endif /* MCA_KF_ROWS_H */

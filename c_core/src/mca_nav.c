@@ -147,7 +147,8 @@ MCA_COLD mca_status_t mca_nav_init(mca_nav_t *nav, const mca_nav_config_t *cfg)
     return MCA_OK;
 }
 
-static float norm3(const float v[3])
+/* Not inlined into its two calls (the alignment's still test): 16 B of flash less. */
+MCA_NOINLINE static float norm3(const float v[3])
 {
     return sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
 }
@@ -158,10 +159,9 @@ static void align(mca_nav_t *nav, const float f_mean[3], const float bias[3], fl
                           mca_atan2f(f_mean[0], sqrtf(f_mean[1] * f_mean[1] + f_mean[2] * f_mean[2])), 0.0f};
     float q[4];
     mca_quat_from_euler(q, eul);
-    mca_att_config_t acfg = nav->cfg.att;
-    acfg.att0_var_rad2 = att_var_rad2;
-    mca_att_init_nocheck(&nav->att, &acfg, q, bias); /* config checked at init; means of finite samples */
-    nav->att.cfg.att0_var_rad2 = nav->cfg.att.att0_var_rad2;
+    mca_att_init_nocheck(&nav->att, &nav->cfg.att, q, bias); /* config checked at init; means of finite samples */
+    nav->att.p[0] = att_var_rad2; /* roll and pitch: this alignment's variance, not att0_var */
+    nav->att.p[7] = att_var_rad2;
     nav->aligned = 1u;
     nav->t_lastgrav_us = nav->t_imu_us;
 }
@@ -180,8 +180,11 @@ static void accumulate_alignment(mca_nav_t *nav, const float w[3], const float f
     const float zero[3] = {0.0f, 0.0f, 0.0f};
     if (nav->u.init.win_us >= us(nav->cfg.init_still_s)) {
         const float inv = 1.0f / (float)nav->u.init.n;
-        const float fm[3] = {nav->u.init.f_sum[0] * inv, nav->u.init.f_sum[1] * inv, nav->u.init.f_sum[2] * inv};
-        const float wm[3] = {nav->u.init.w_sum[0] * inv, nav->u.init.w_sum[1] * inv, nav->u.init.w_sum[2] * inv};
+        float fm[3], wm[3];
+        for (size_t i = 0; i < 3u; ++i) {
+            fm[i] = nav->u.init.f_sum[i] * inv;
+            wm[i] = nav->u.init.w_sum[i] * inv;
+        }
         /* moving by GPS: the newest fix's horizontal speed (ALGORITHMS.md 8, IMU step 4) */
         const int moving = nav->have_fix && (nav->prev_vel_mask & 3u) == 3u &&
                            nav->vel_prev[0] * nav->vel_prev[0] + nav->vel_prev[1] * nav->vel_prev[1] > 0.25f;
@@ -218,15 +221,13 @@ static void hist_accumulate(mca_nav_t *nav, const float f[3], uint32_t dt_us, in
         e->t_us = (uint32_t)nav->t_imu_us;
         for (size_t i = 0; i < 3u; ++i) {
             e->f_b_mps2[i] = nav->hist_f_sum[i] * inv;
+            nav->hist_f_sum[i] = 0.0f;
         }
         memcpy(e->q_nb, nav->att.q_nb, sizeof(e->q_nb));
         e->saturated = nav->hist_sat;
         nav->hist_head = (uint8_t)((nav->hist_head + 1u) % MCA_HIST_LEN);
         if (nav->hist_count < MCA_HIST_LEN) {
             nav->hist_count++;
-        }
-        for (size_t i = 0; i < 3u; ++i) {
-            nav->hist_f_sum[i] = 0.0f;
         }
         nav->hist_n = 0u;
         nav->hist_acc_us = 0u;
@@ -276,12 +277,9 @@ static const mca_hist_entry_t *hist_find(const mca_nav_t *nav, int64_t t)
     }
     /* the nearest is the first entry at or after t, or the one before it (older on ties) */
     const uint16_t k = hist_lower_bound(nav, oldest, t32);
-    if (k == 0u) {
-        return hist_at(nav, oldest, 0u); /* t is the oldest entry's time */
-    }
-    const mca_hist_entry_t *before = hist_at(nav, oldest, (uint16_t)(k - 1u));
-    if (k == nav->hist_count) {
-        return before;
+    const mca_hist_entry_t *before = hist_at(nav, oldest, (uint16_t)(k != 0u ? k - 1u : 0u));
+    if (k == 0u || k == nav->hist_count) {
+        return before; /* k 0: t is the oldest entry's time */
     }
     const mca_hist_entry_t *after = hist_at(nav, oldest, k);
     return (after->t_us - t32) < (t32 - before->t_us) ? after : before;
@@ -299,8 +297,9 @@ MCA_NOINLINE static const mca_hist_entry_t *hist_newest(const mca_nav_t *nav)
 /* mca_nav_t.grav_pending */
 enum { GRAV_NONE = 0, GRAV_UPDATE = 1, GRAV_SKIP = 2, GRAV_NO_HIST = 3 };
 
-/* A skipped observation attempt (no usable input). */
-static void gravity_skip(mca_nav_t *nav)
+/* A skipped observation attempt (no usable input). Not inlined into its three callers: 12 B of
+ * flash less. */
+MCA_NOINLINE static void gravity_skip(mca_nav_t *nav)
 {
     nav->flags |= MCA_FLAG_GRAV_SKIPPED;
     nav->n_grav_skip++;
@@ -311,13 +310,9 @@ static void gravity_skip(mca_nav_t *nav)
  * of the caller, ALGORITHMS.md 8). */
 static void gravity_done(mca_nav_t *nav, int hist_miss, mca_status_t st)
 {
-    if (hist_miss) {
-        nav->flags |= MCA_FLAG_HIST_MISS;
-        gravity_skip(nav);
-        return;
-    }
-    nav->flags &= ~(uint32_t)MCA_FLAG_HIST_MISS;
-    if (st != MCA_OK) {
+    const uint32_t f = nav->flags & ~(uint32_t)MCA_FLAG_HIST_MISS;
+    nav->flags = hist_miss ? f | MCA_FLAG_HIST_MISS : f;
+    if (hist_miss || st != MCA_OK) {
         gravity_skip(nav);
         return;
     }
@@ -455,12 +450,16 @@ enum {
     STEP_PHOLD = 64u
 };
 
-/* The fuzzy memories' D of N and E raised to at least v (up) or lowered to at most v. */
-MCA_NOINLINE static void step_dk(mca_nav_t *nav, float v, int up)
+/* The fuzzy memories of N and E: a hold of the rows held (MCA_CS_POS or MCA_CS_VEL) leaves them out
+ * of both updates with the alarm (the pair rows, started; D raised to at least 2); held 0, the end
+ * of a hold, lowers D to at most 1. */
+MCA_NOINLINE static void step_dk(mca_nav_t *nav, uint8_t held)
 {
+    const float v = held != 0u ? 2.0f : 1.0f;
     for (size_t i = 0; i < 2u; ++i) {
-        float *d = &nav->cs.axis[i].rs.d_k;
-        *d = (up ? *d < v : *d > v) ? v : *d;
+        mca_robust_state_t *rs = &nav->cs.axis[i].rs;
+        rs->started |= held;
+        rs->d_k = (held != 0u ? rs->d_k < v : rs->d_k > v) ? v : rs->d_k;
     }
 }
 
@@ -535,9 +534,7 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
         nav->u.step.var += coast_h * t * t;
         nav->step_hold = (uint8_t)(hold + 1u);
         if (rows) {
-            nav->cs.axis[0].rs.started |= MCA_CS_VEL;
-            nav->cs.axis[1].rs.started |= MCA_CS_VEL;
-            step_dk(nav, 2.0f, 1);
+            step_dk(nav, MCA_CS_VEL);
         }
     } else {
         if (ret || hold != 0u) {
@@ -546,7 +543,7 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
             nav->step_flags = (uint8_t)(armed ? nav->step_flags | STEP_ARMED : nav->step_flags & ~STEP_ARMED);
             if (!armed) {
                 if (rows) {
-                    step_dk(nav, 1.0f, 0);
+                    step_dk(nav, 0u);
                 }
                 nav->step_flags |= STEP_RET;
             }
@@ -645,10 +642,14 @@ static void nav_nogps_observation(mca_nav_t *nav, const float gyro[3])
 }
 
 /* The no-GPS observation the last IMU step made (ALGORITHMS.md 8, IMU step 6), completed before
- * this call changes anything: the attitude is still the one it was measured at. */
+ * this call changes anything: the attitude is still the one it was measured at. Nothing when none
+ * is pending (the test here, not at its three callers: 8 B of flash less). */
 MCA_NOINLINE static void grav_complete(mca_nav_t *nav)
 {
     const uint8_t pending = nav->grav_pending;
+    if (pending == GRAV_NONE) {
+        return;
+    }
     nav->grav_pending = GRAV_NONE;
     const mca_status_t st = pending == GRAV_UPDATE ? mca_att_gravity_apply_nocheck(&nav->att, nav->grav_nu,
                                                                                    nav->grav_rows, nav->grav_r, nav->ws)
@@ -689,9 +690,7 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], con
     if (nav == NULL || gyro == NULL || accel == NULL) {
         return MCA_ERR_NULL;
     }
-    if (nav->grav_pending != GRAV_NONE) {
-        grav_complete(nav); /* the last IMU step's observation, whatever this call's inputs */
-    }
+    grav_complete(nav); /* the last IMU step's observation, whatever this call's inputs */
     uint32_t dt_us;
     const mca_status_t sc = mca_imu_clock_step(&nav->t_imu_us, &nav->t_first_us, &nav->have_imu, t_us, gyro, accel,
                                                us(nav->cfg.imu_dt_max_s), &dt_us);
@@ -700,7 +699,10 @@ mca_status_t mca_nav_imu(mca_nav_t *nav, uint64_t t_us, const float gyro[3], con
     }
     const float dt = (float)dt_us * 1e-6f;
     const float sat = nav->cfg.accel_sat_mps2;
-    const int saturated = fabsf(accel[0]) >= sat || fabsf(accel[1]) >= sat || fabsf(accel[2]) >= sat;
+    int saturated = 0;
+    for (size_t i = 0; i < 3u; ++i) {
+        saturated |= fabsf(accel[i]) >= sat;
+    }
     if (saturated) {
         nav->flags |= MCA_FLAG_SATURATED;
     }
@@ -881,13 +883,11 @@ MCA_NOINLINE static int pos_hold(mca_nav_t *nav, const float ned[3], const float
         if (!back && 2.0f * es >= ss && ee <= g4 * v &&
             (nav->cs.axis[0].rs.n_removed[0] < nav->cs.axis[0].cfg.robust.reject_reset_n ||
              es * es > mca_chi2_quantile(2u, MCA_CHI2_5E3) * ss * v)) {
-            nav->cs.axis[0].rs.started |= MCA_CS_POS;
-            nav->cs.axis[1].rs.started |= MCA_CS_POS;
-            step_dk(nav, 2.0f, 1);
+            step_dk(nav, MCA_CS_POS);
         } else {
             nav->step_flags &= (uint8_t)~(STEP_PHOLD | STEP_REF);
             if (nav->step_hold == 0u) {
-                step_dk(nav, 1.0f, 0);
+                step_dk(nav, 0u);
             }
         }
     }
@@ -951,11 +951,9 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     }
     const int ph = rows ? pos_hold(nav, ned, d, t, h_acc) : 0;
     /* an axis returns on its jump, or with no fault pending on either axis: the restart takes both
-     * (GPS step 4) */
-    int ret_pos = 0;
-    for (size_t i = 0; i < 2u; ++i) {
-        ret_pos |= (ax_bits[i] & POS_RETURN) != 0 && ((ax_bits[i] & POS_JUMPED) != 0 || (pos & POS_PENDING) == 0);
-    }
+     * (GPS step 4); the bits an axis needs for it */
+    const int need = (pos & POS_PENDING) != 0 ? POS_RETURN | POS_JUMPED : POS_RETURN;
+    const int ret_pos = (ax_bits[0] & need) == need || (ax_bits[1] & need) == need;
     /* No report (T is read from the axis memory; N and E can then share one covariance
      * update). An axis can fail only numerically, and then it is left unchanged
      * (mca_cs_axis_update is atomic) and keeps its T. */
@@ -1097,9 +1095,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
     if (nav == NULL || fix == NULL) {
         return MCA_ERR_NULL;
     }
-    if (nav->grav_pending != GRAV_NONE) {
-        grav_complete(nav); /* the last IMU step's observation, whatever this call's inputs */
-    }
+    grav_complete(nav); /* the last IMU step's observation, whatever this call's inputs */
     mca_fix_view_t fv;
     const mca_status_t sf =
         mca_gps_fix_read(fix, nav->cfg.gps_pos_sigma_m, nav->cfg.gps_alt_sigma_m, nav->cfg.gps_vel_sigma_mps, &fv);
@@ -1169,9 +1165,7 @@ mca_status_t mca_nav_mag(mca_nav_t *nav, uint64_t t_us, const float mag_b[3])
     if (nav == NULL || mag_b == NULL) {
         return MCA_ERR_NULL;
     }
-    if (nav->grav_pending != GRAV_NONE) {
-        grav_complete(nav); /* the last IMU step's observation, whatever this call's inputs */
-    }
+    grav_complete(nav); /* the last IMU step's observation, whatever this call's inputs */
     if (!mca_all_finite(mag_b, 3u)) {
         return MCA_ERR_NONFINITE;
     }
