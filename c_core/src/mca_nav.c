@@ -507,12 +507,18 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
      * held step than the anchor (s . s0 >= |s0|^2 / 2) still carries the fault, however the
      * anchor's variance has grown; in fuzzy rows so does one whose held fixes' velocities, less
      * their positions' change, still say the step (nearer it than 0, beyond the receiver's
-     * position error over the hold), however far the anchor has drifted. */
+     * position error over the hold), however far the anchor has drifted, and one they say is
+     * clean (within that error of 0, beyond it of the step: the anchor had the step) is released,
+     * whatever the anchor says. */
     const int rows = fuzzy_rows(&nav->cs.axis[0].cfg.robust);
     const float var_p = hold_var(nav, white_part(fv->h_acc_m, nav->cfg.gps_pos_white_m), nav->u.step.pv[2]);
-    const int by_pos = rows && hold != 0u && 2.0f * pv >= n0 * nav->u.step.pv[2] && pv * pv > g * n0 * var_p;
-    const int fail = e2 > g * c ? hold != 0u || (nav->step_flags & STEP_PRE) == 0u || pp > g * c
-                                : hold != 0u && (2.0f * ds >= n0 || by_pos);
+    const float te = n0 * nav->u.step.pv[2];
+    const float kv = n0 * var_p;
+    const int held_rows = rows && hold != 0u;
+    const int by_pos = held_rows && 2.0f * pv >= te && pv * pv > g * kv;
+    const int no_step = held_rows && pv * pv <= g * kv && (te - pv) * (te - pv) > g4 * kv;
+    const int fail = !no_step && (e2 > g * c ? hold != 0u || (nav->step_flags & STEP_PRE) == 0u || pp > g * c
+                                             : hold != 0u && (2.0f * ds >= n0 || by_pos));
     /* the return: the reverse of the step that started the hold, within it the raw step, after a
      * release with the fault still in the anchor's; at least 0.71 of the held step, and at most
      * 1.5 times it unless the positions say the step (s0 is one fix against the anchor) */
@@ -538,14 +544,15 @@ MCA_NOINLINE static void step_test(mca_nav_t *nav, const mca_fix_view_t *fv, con
         }
     } else {
         if (ret || hold != 0u) {
-            /* a release with the fault still in (no raw step) arms the return; else the fault ended */
-            const int armed = !ret && r2 <= g * c_raw;
+            /* a release with the fault still in (no raw step) arms the return; else the fault ended,
+             * one the CS took in unless the positions released it (the anchor had the step) */
+            const int armed = !ret && !no_step && r2 <= g * c_raw;
             nav->step_flags = (uint8_t)(armed ? nav->step_flags | STEP_ARMED : nav->step_flags & ~STEP_ARMED);
             if (!armed) {
                 if (rows) {
                     step_dk(nav, 0u);
                 }
-                nav->step_flags |= STEP_RET;
+                nav->step_flags = (uint8_t)(no_step ? nav->step_flags : nav->step_flags | STEP_RET);
             }
         }
         mca_copyf(nav->u.step.pre, pred, 2u);

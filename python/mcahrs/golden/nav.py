@@ -154,30 +154,29 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     velocity rows go out (``vel_held``, choice 21) and the detectors' ``D`` rise to at least 2, and a
     disarmed release lowers them to at most 1; in the other modes neither (the update and its
     memories are those of the fix not held), and the held fix gives no course observation (choice
-    19). The fault's end (a disarmed release) restarts the CS in every mode when step 6 then flags the
-    fix (choice 23). A fix neither held, nor the return, nor the first after a hold leaves *armed* as it
-    was. The detectors' ``D`` changes are made before the predict and the updates (so the N/E pair's plans see
-    them). ``v_last`` is the previous accepted fix's velocity (held or not). "The
-    test ran on it": its conditions held, whatever its outcome; otherwise the anchor needs both N
-    and E with the velocity row applied (their coasting marks clear after the update). The anchor
-    before: with no fix held, the agreement ``|v_fix - (v_pre + dv)|^2 <= k C`` uses the same ``k``
-    (``chi2_2(1e-4)``) and ``C`` (the current anchor's ``V_a``) as the step; it only clears a failure
-    (so a fix it clears is neither held nor the return). While holding, the nearer-the-step test
-    ``2 s . s0 >= |s0|^2`` fails a fix whatever ``k C`` says (the return is then judged on ``r`` as
-    before). ``v_pre = v_p`` on every fix the test ran on and did not hold (the return and the fix
-    after a hold included); a held fix keeps ``v_pre`` and *pre*. At step 7 nothing of the test is
-    written before alignment (the anchor, *pre* and ``V_a`` stay; the test runs aligned only).
-    The variance scale ``lambda`` (session 31): 1 at construction (``mca_nav_init``; ``reset``, which
-    only the constructor calls), never reset by a CS (re-)initialisation, a gap, a restart or a
-    re-alignment. It is read at the test's start: ``C = lambda C_u``, ``C_u = s_acc^2 + V_a + qa T^2``,
-    ``C_r = lambda (2 s_acc^2 + qa T^2)``, and every comparison with ``k C`` or a ``C_r`` uses the
-    scaled ones (the fail test, the anchor before's agreement, the return's raw step back, *armed*);
-    the positions' ``V_e`` (choice 27) is not scaled. After the test, on a fix with no fix held at its
-    start (``n = 0``) and ``|s|^2 <= k C`` (it passes on its own, so is neither held nor the return),
-    ``lambda = min(1, max(1/4, (31/32) lambda + |s|^2 / (64 C_u)))`` from that fix's ``|s|^2`` and
-    ``C_u``, in float64 (the C's float32 arithmetic is not modelled). A fix the test does not run on
-    leaves it as it was. The return's size window: ``q >= 0.5 |s0|^2`` always, ``q <= 2.25 |s0|^2``
-    unless the positions say the held step (choice 27).
+    19). The fault's end (a disarmed release, not one by the positions, choice 27) restarts the CS in
+    every mode when step 6 then flags the fix (choice 23). A fix neither held, nor the return, nor the
+    first after a hold leaves *armed* as it was. The detectors' ``D`` changes are made before the predict
+    and the updates (so the N/E pair's plans see them). ``v_last`` is the previous accepted fix's velocity
+    (held or not). "The test ran on it": its conditions held, whatever its outcome; otherwise the anchor
+    needs both N and E with the velocity row applied (their coasting marks clear after the update). The
+    anchor before: with no fix held, the agreement ``|v_fix - (v_pre + dv)|^2 <= k C`` uses the same ``k``
+    (``chi2_2(1e-4)``) and ``C`` (the current anchor's ``V_a``) as the step; it only clears a failure (so
+    a fix it clears is neither held nor the return). While holding, the nearer-the-step test ``2 s . s0 >=
+    |s0|^2`` fails a fix whatever ``k C`` says (the return is then judged on ``r`` as before). ``v_pre =
+    v_p`` on every fix the test ran on and did not hold (the return and the fix after a hold included); a
+    held fix keeps ``v_pre`` and *pre*. At step 7 nothing of the test is written before alignment (the
+    anchor, *pre* and ``V_a`` stay; the test runs aligned only). The variance scale ``lambda`` (session
+    31): 1 at construction (``mca_nav_init``; ``reset``, which only the constructor calls), never reset by
+    a CS (re-)initialisation, a gap, a restart or a re-alignment. It is read at the test's start: ``C =
+    lambda C_u``, ``C_u = s_acc^2 + V_a + qa T^2``, ``C_r = lambda (2 s_acc^2 + qa T^2)``, and every
+    comparison with ``k C`` or a ``C_r`` uses the scaled ones (the fail test, the anchor before's
+    agreement, the return's raw step back, *armed*); the positions' ``V_e`` (choice 27) is not scaled.
+    After the test, on a fix with no fix held at its start (``n = 0``) and ``|s|^2 <= k C`` (it passes on
+    its own, so is neither held nor the return), ``lambda = min(1, max(1/4, (31/32) lambda + |s|^2 / (64
+    C_u)))`` from that fix's ``|s|^2`` and ``C_u``, in float64 (the C's float32 arithmetic is not
+    modelled). A fix the test does not run on leaves it as it was. The return's size window: ``q >= 0.5
+    |s0|^2`` always, ``q <= 2.25 |s0|^2`` unless the positions say the held step (choice 27).
 21. The N/E pair (section 5) is formed when N and E both run fuzzy rows, both have a prior and both
     take position and velocity; each plan is ``robust.fuzzy_rows_failed`` on the axis' memory (read
     only), and a held fix's velocity rows are added to both pairs. A plan whose test fails
@@ -198,26 +197,26 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
 23. The end of a fault the CS took in (GPS step 3): "a fix the test judged the fault's end" is one the
     step test ran on, did not hold, and found the return or the first fix after a hold, and left
     disarmed (in fuzzy rows the one whose N and E ``D`` it lowers to at most 1; an armed release is not
-    an end), in every mode the test runs in. It restarts the CS when "step 6 then *flags*" the fix: the
-    flag step 6 computes (choice 19) from this fix's N and E updates of step 4, taken after the update
-    and before the restart (which clears the marks and memories it reads), each axis by its own robust
-    configuration (both ``cs_h``'s; the D update flags nothing). In fuzzy rows and IGG-III it is that
-    axis' coasting mark ``out`` set after step 4 ("the N or E update of step 4 leaving its velocity row
-    out or rejecting the update": for IGG-III the same as step 6's rejection or velocity weight 0), and
-    an axis whose update failed numerically keeps the mark it had (choice 22, as the spec says); in FTA,
-    AKF and fuzzy reject or inflate the mode's ``detected`` or its tested ``T > chi2_m(0.01)`` (``m``
-    that update's rows), and a failed axis (no detection, no T) flags nothing. The flag is only the
-    restart's condition: the restarted fix does not become the last flagged one (steps 5-6 are not
-    done), so it starts no ``tau_a`` hold. The restart is choice 17's, after the update: every axis (D
-    included) re-initialised at the fix's position (N and E at the position reference when near it,
-    choice 25) and velocity, memories, coasting marks and priors
-    cleared, ``a_last`` 0, ``n`` as the test left it (0: the hold has just ended, or none was); the
-    reported ``gps_T`` stay the update's tested T (the axes were updated), and a later failed
-    update reports NaN until one succeeds (the CS restarted). Steps 5-6 are skipped (no compensation,
-    no flagged fix, no roll/pitch or course observation, no count); step 7 is done as after an
-    update: the test ran on the fix, so its velocity is the anchor (``V_a = s_acc^2``) with *pre*
-    set (``v_pre`` the pre-fault anchor carried on, as the test left it). With another axis failing
-    numerically on the same fix, the restart is done and that axis' status then raised.
+    an end, nor is a release by the positions, choice 27), in every mode the test runs in. It restarts the
+    CS when "step 6 then *flags*" the fix: the flag step 6 computes (choice 19) from this fix's N and E
+    updates of step 4, taken after the update and before the restart (which clears the marks and memories
+    it reads), each axis by its own robust configuration (both ``cs_h``'s; the D update flags nothing). In
+    fuzzy rows and IGG-III it is that axis' coasting mark ``out`` set after step 4 ("the N or E update of
+    step 4 leaving its velocity row out or rejecting the update": for IGG-III the same as step 6's
+    rejection or velocity weight 0), and an axis whose update failed numerically keeps the mark it had
+    (choice 22, as the spec says); in FTA, AKF and fuzzy reject or inflate the mode's ``detected`` or its
+    tested ``T > chi2_m(0.01)`` (``m`` that update's rows), and a failed axis (no detection, no T) flags
+    nothing. The flag is only the restart's condition: the restarted fix does not become the last flagged
+    one (steps 5-6 are not done), so it starts no ``tau_a`` hold. The restart is choice 17's, after the
+    update: every axis (D included) re-initialised at the fix's position (N and E at the position
+    reference when near it, choice 25) and velocity, memories, coasting marks and priors cleared,
+    ``a_last`` 0, ``n`` as the test left it (0: the hold has just ended, or none was); the reported
+    ``gps_T`` stay the update's tested T (the axes were updated), and a later failed update reports NaN
+    until one succeeds (the CS restarted). Steps 5-6 are skipped (no compensation, no flagged fix, no
+    roll/pitch or course observation, no count); step 7 is done as after an update: the test ran on the
+    fix, so its velocity is the anchor (``V_a = s_acc^2``) with *pre* set (``v_pre`` the pre-fault anchor
+    carried on, as the test left it). With another axis failing numerically on the same fix, the restart
+    is done and that axis' status then raised.
 24. The end of a position fault the CS took in (GPS step 4): N and E each by their own robust config
     (both ``cs_h``'s), the rule's axes those whose mode is FTA, AKF, IGG-III or fuzzy with
     ``fuzzy_reject`` 0 or 1. ``z`` is the fix's NED position on the axis, ``p_0`` / ``p`` the CS
@@ -295,39 +294,44 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     the gate would say. The 120 s bound covers a hold that released with no fault in, which leaves
     *armed* set until the next hold. The counting and the guard are the same in plain mode, with no
     gate. The magnetometer yaw has no gate and neither reads nor changes ``n_cog``.
-27. The held fixes' positions (GPS step 3, velocity step test, session 27), fuzzy rows only (``cs_h``'s
-    ``robust.mode`` fuzzy with ``fuzzy_reject`` 2). The test is read only while holding (``n > 0`` before
-    this fix, as the other holding rules): with ``e`` (N, E) and ``t_e`` as the held fixes before this
-    one left them, the fix also fails when ``2 e . s0 >= t_e |s0|^2`` and ``(e . s0)^2 > k |s0|^2 V_e``,
-    ``k`` the step's own ``k`` of a fix while holding, ``chi2_2(0.005)`` (the 2-DOF quantile, though
-    ``e . s0`` is one number: the spec's ``k``), ``V_e = 2 w^2 + 2 sigma_p^2 t_e / tau_p``, ``w`` the
-    white part of this fix's ``h_acc`` (``min(h_acc, gps_pos_white_m)`` with the receiver model, the whole
-    ``h_acc`` without it: the N/E position variance of this fix's step 4), ``sigma_p``, ``tau_p``
-    ``cs_h``'s ``sigma_p_m``, ``tau_p_s``. With ``e = 0``, ``t_e = 0`` (nothing summed) it never fails
-    (``V_e > 0``): the hold's second fix sees nothing summed, so the positions speak from its third fix
-    (one interval summed) on. Such a fix is the return when, on ``r``, ``u . s0 < 0``, ``(u . s0)^2 >=
-    0.5 q |s0|^2``, ``q >= 0.5 |s0|^2`` and ``|r|^2 > chi2_2(1e-4) C_r`` (``C_r`` scaled by ``lambda``,
-    choice 20) hold, the window's upper bound ``q <= 2.25 |s0|^2`` not asked ("unless the positions say
-    the held step": both conditions above; the lower bound holds either way, session 31); a fix that
-    fails only by the other rules keeps the whole window. The sum, "after the test" (step 3, before the
-    predict and the CS update of step 4; a fix the gap re-initialises skips the test and is not held),
-    on a fix the test held (``h = n > 0`` after it; a held fix is aligned, the test runs aligned only):
-    the hold's first (``h = 1``) sets ``e = 0``, ``t_e = 0`` and adds nothing; each one after it (``h >
-    1``) adds ``T (v_fix + v_last) / 2 - (p_fix - p_last)`` to ``e`` and ``T`` (this fix's interval, that
-    of step 3's predict) to ``t_e``; every held fix, and no other, then sets ``p_last`` to its N and E
-    position, step 3's ``ned`` (section 6, from home). A fix not held (the return, the first fix after a
-    hold, a fix the test does not run on) changes neither ``e`` nor ``t_e``; ``e`` and ``t_e``
+27. The held fixes' positions (GPS step 3, velocity step test, sessions 27 and 32), fuzzy rows only
+    (``cs_h``'s ``robust.mode`` fuzzy with ``fuzzy_reject`` 2). The test is read only while holding (``n >
+    0`` before this fix, as the other holding rules): with ``e`` (N, E) and ``t_e`` as the held fixes
+    before this one left them, the fix also fails when ``2 e . s0 >= t_e |s0|^2`` and ``(e . s0)^2 > k
+    |s0|^2 V_e``, ``k`` the step's own ``k`` of a fix while holding, ``chi2_2(0.005)`` (the 2-DOF
+    quantile, though ``e . s0`` is one number: the spec's ``k``), ``V_e = 2 w^2 + 2 sigma_p^2 t_e /
+    tau_p``, ``w`` the white part of this fix's ``h_acc`` (``min(h_acc, gps_pos_white_m)`` with the
+    receiver model, the whole ``h_acc`` without it: the N/E position variance of this fix's step 4),
+    ``sigma_p``, ``tau_p`` ``cs_h``'s ``sigma_p_m``, ``tau_p_s``. With ``e = 0``, ``t_e = 0`` (nothing
+    summed) it neither fails nor releases (below; ``V_e > 0``): the hold's second fix sees nothing summed,
+    so the positions speak from its third fix (one interval summed) on. Such a fix is the return when, on
+    ``r``, ``u . s0 < 0``, ``(u . s0)^2 >= 0.5 q |s0|^2``, ``q >= 0.5 |s0|^2`` and ``|r|^2 > chi2_2(1e-4)
+    C_r`` (``C_r`` scaled by ``lambda``, choice 20) hold, the window's upper bound ``q <= 2.25 |s0|^2``
+    not asked ("unless the positions say the held step": both conditions above; the lower bound holds
+    either way, session 31); a fix that fails only by the other rules keeps the whole window. The fix is
+    *released by the positions* (session 32) when ``(e . s0)^2 <= k |s0|^2 V_e`` and ``(t_e |s0|^2 - e .
+    s0)^2 > chi2_2(1e-4) |s0|^2 V_e`` (never with the rule above), from the same ``e``, ``t_e``: it fails
+    by no rule (the anchor's included), so it is the first fix after the hold, never the return; it is
+    disarmed (N and E take ``D = min(D, 1)``, as at any disarmed end of a hold) and no fault's end
+    (``vst.ended`` clear: step 6's flag of it restarts nothing, choice 23). The sum, "after the test"
+    (step 3, before the predict and the CS update of step 4; a fix the gap re-initialises skips the test
+    and is not held), on a fix the test held (``h = n > 0`` after it; a held fix is aligned, the test runs
+    aligned only): the hold's first (``h = 1``) sets ``e = 0``, ``t_e = 0`` and adds nothing; each one
+    after it (``h > 1``) adds ``T (v_fix + v_last) / 2 - (p_fix - p_last)`` to ``e`` and ``T`` (this fix's
+    interval, that of step 3's predict) to ``t_e``; every held fix, and no other, then sets ``p_last`` to
+    its N and E position, step 3's ``ned`` (section 6, from home). A fix not held (the return, the first
+    fix after a hold, a fix the test does not run on) changes neither ``e`` nor ``t_e``; ``e`` and ``t_e``
     are not cleared by a CS start or by the end of a hold either (only read while holding, and every
     hold's first fix restarts them). ``p_last`` is step 4's memory of the last position, ``z_prev``
     (``_PosJumps``), which every fix sets in fuzzy rows (the position hold, choice 28, after these sums
     have read it: the held fix's "sets ``p_last``" is that write) and every CS (re-)initialisation makes
-    NaN (``_cs_restart``). It is read only on a fix held after another held fix (``h > 1``), so it is
-    the fix before's position unless that fix restarted the CS: the position hold's restart (choice 28)
-    may fall on a fix the step test holds, and the next held fix then sums a NaN. The model lets it
-    propagate: ``e`` is NaN for the rest of that hold, so the positions no longer say the held step
-    (every comparison with NaN is false) until the next hold's first fix restarts the sum (the C core
-    does the same: a golden model that skipped the NaN term, or restarted the sum there, parted from it
-    in tests/python/test_nav_golden_vs_c.py, CAR_POS_BURST_RESTART_HELD). ``v_last`` is step 7's
+    NaN (``_cs_restart``). It is read only on a fix held after another held fix (``h > 1``), so it is the
+    fix before's position unless that fix restarted the CS: the position hold's restart (choice 28) may
+    fall on a fix the step test holds, and the next held fix then sums a NaN. The model lets it propagate:
+    ``e`` is NaN for the rest of that hold, so the positions say nothing, neither the held step nor a
+    release (every comparison with NaN is false), until the next hold's first fix restarts the sum (the C
+    core does the same: a golden model that skipped the NaN term, or restarted the sum there, parted from
+    it in tests/python/test_nav_golden_vs_c.py, CAR_POS_BURST_RESTART_HELD). ``v_last`` is step 7's
     remembered velocity, the held fix ``h - 1``'s (step 7 is done on every fix past step 1, a numerical
     failure's too), which has N and E velocity (the test ran on it). A fix whose CS axis update fails
     numerically keeps what step 3 wrote (choice 22); a step 1 error changes nothing.
@@ -720,7 +724,8 @@ class _StepTest:
     # the time it spans; restarted at the hold's first fix
     e: np.ndarray = field(default_factory=lambda: np.zeros(2))
     t_e: float = 0.0
-    # the test judged this fix the fault's end: the return, or the first fix after a hold, disarmed
+    # the test judged this fix the fault's end: the return, or the first fix after a hold, disarmed (not
+    # released by the positions)
     ended: bool = False
     # the variance scale (session 31): 1 at mca_nav_init, kept through CS restarts and re-alignments;
     # C and C_r are scaled by it, in [1/4, 1] (choice 20)
@@ -1615,10 +1620,11 @@ class Nav:
         disarmed release is the fault's end (``vst.ended``: the CS restarts from it when step 6 then
         flags the fix, choice 23). In fuzzy rows a fix also fails while holding when the held fixes'
         positions say the held step (``vst.e``, ``vst.t_e``; ``w`` the white part of this fix's ``h_acc``,
-        GPS step 4's receiver model), and such a fix's return needs no upper bound on its size (choice
-        27). ``C`` and ``C_r`` are scaled by ``vst.lam``, read here and updated after the test from this
-        fix's ``|s|^2`` and ``C_u`` when no fix was held at its start and it passes on its own (choice 20,
-        session 31)."""
+        GPS step 4's receiver model), and such a fix's return needs no upper bound on its size; when they
+        agree with the fixes' velocities and not with the held step, they release it (it fails by no
+        rule), disarmed and no fault's end (choice 27). ``C`` and ``C_r`` are scaled by ``vst.lam``, read
+        here and updated after the test from this fix's ``|s|^2`` and ``C_u`` when no fix was held at its
+        start and it passes on its own (choice 20, session 31)."""
         st = self.vst
         st.ended = False
         cfg_h = self.cfg.cs_h
@@ -1650,15 +1656,19 @@ class Nav:
         s0n = float(st.s0 @ st.s0)
         # fuzzy rows, while holding: the held fixes' positions say the held step (the mean velocity by
         # which they disagree, e / t_e, nearer s0 than 0, and e . s0 beyond the receiver's position
-        # error over the hold: its white part at both ends, its Gauss-Markov part's wander), choice 27
-        positions = False
+        # error over the hold: its white part at both ends, its Gauss-Markov part's wander), choice 27;
+        # or they release the fix: e . s0 within that error of 0 and beyond it from the step (t_e |s0|^2)
+        positions = released = False
         if rows_mode and holding:
             es0 = float(st.e @ st.s0)
             w2 = _white(fx.h_acc, self.cfg.gps_pos_white_m) ** 2  # this fix's N/E position variance
             V_e = 2.0 * w2 + 2.0 * cfg_h.sigma_p_m**2 * st.t_e / cfg_h.tau_p_s
             positions = 2.0 * es0 >= st.t_e * s0n and es0 * es0 > k * s0n * V_e
-        if holding:  # still failing, nearer the held step than the anchor, or the positions say it
-            fails = ss > k * C or 2.0 * float(s @ st.s0) >= s0n or positions
+            off, k_fail = st.t_e * s0n - es0, chi2_quantile(STEP_LEVEL_FAIL, 2)
+            released = es0 * es0 <= k * s0n * V_e and off * off > k_fail * s0n * V_e
+        if holding:  # still failing, nearer the held step than the anchor, or the positions say it;
+            # released by the positions, it does not fail whatever the anchor says
+            fails = not released and (ss > k * C or 2.0 * float(s @ st.s0) >= s0n or positions)
         else:  # a step, unless it agrees with the anchor before (the anchor was the spike)
             d_pre = v_fix - (st.v_pre + dv)
             fails = ss > k * C and not (st.pre and float(d_pre @ d_pre) <= k * C)
@@ -1689,9 +1699,9 @@ class Nav:
                     ax.mem.d_k = max(ax.mem.d_k, 2.0)
             return True, True
         if is_return or holding:
-            st.armed = (not is_return) and rr <= k * C_r
+            st.armed = not (is_return or released) and rr <= k * C_r
             if not st.armed:
-                st.ended = True
+                st.ended = not released  # a release by the positions is no fault's end: no restart
                 if rows_mode:  # the alarm releases at the first clean fix
                     for ax in (n_ax, e_ax):
                         ax.mem.d_k = min(ax.mem.d_k, 1.0)
