@@ -923,6 +923,7 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
      * at worst 0, which the update takes: H P H^T > 0) and the masks are well formed: nothing of
      * mca_cs3_update's checks is left to make. */
     const float x0[2] = {nav->cs.axis[0].x[0], nav->cs.axis[1].x[0]};
+    const uint8_t held0 = nav->step_hold; /* fixes held before this one's test */
     cs_predict(nav, fix->t_us, t, fv);
     const uint8_t held = nav->step_hold;
     const int rows = fuzzy_rows(&nav->cs.axis[0].cfg.robust);
@@ -942,12 +943,13 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
     int pos = 0, near = POS_NEAR, ran = 0, ax_bits[2] = {0, 0};
     const int vv = has_vne && (nav->prev_vel_mask & 3u) == 3u;
     float d[2];
+    /* on a fix the step test holds after its first the fixes' velocity has the fault: the CS's
+     * predicted change, as without velocities; for fuzzy rows' position hold also on the hold's
+     * first fix and the fix after a held one (the trapezoid would carry a held velocity) */
+    const int trapezoid = vv && (rows ? (held | held0) == 0u : held < 2u);
     for (size_t i = 0; i < 2u; ++i) {
         const mca_robust_config_t *rc = &nav->cs.axis[i].cfg.robust;
-        /* on a fix the step test holds after its first the fixes' velocity has the fault: the
-         * CS's predicted change, as without velocities */
-        d[i] = vv && held < 2u ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i])
-                               : nav->cs.axis[i].x[0] - x0[i];
+        d[i] = trapezoid ? 0.5f * t * (fv->vel_ned_mps[i] + nav->vel_prev[i]) : nav->cs.axis[i].x[0] - x0[i];
         if (rc->mode != (uint8_t)MCA_ROBUST_PLAIN && !rows) {
             const int b = pos_return(nav, i, ned[i], rp[i], d[i], t);
             pos |= b;

@@ -471,6 +471,23 @@ CAR_POS_VEL_DRIFT = ((20.0, 35.0, 6.0, 0.0, 306.87), (20.0, 35.0, 0.0, 0.4, 126.
 # and the hold to the burst's end, and parts from the C at 50.1 s (19 / 20 roll/pitch decisions, 3 flag
 # events); without the restart it alarms from 20.0 s to 53.8 s and parts at 37.1 s.
 CAR_POS_BURST_RESTART_HELD = CAR_POS_BURST_RESTART + ((36.0, 54.0, 0.0, 1.1, 90.0),)
+# The position hold's d on the fixes the step test holds, its first included, and on the fix after a held one
+# (GPS step 4, fuzzy rows: the CS's predicted change, where the trapezoid T (v + v_prev) / 2 would carry the
+# held velocity into the anchor): a 4 m/s east velocity spike on one fix of the car's cruise at 2 Hz (seed 1,
+# 45 s, T 0.5 s), with the receiver model, on the fix of 22.0 s (CAR_SPIKE_HELD_2HZ) or of 21.5 s
+# (CAR_SPIKE_BEFORE_2HZ). The step test holds the spike's fix (n = 1) and releases at the next. The fix of
+# 22.0 s is one whose N and E updates leave the position row out (either rule; its jump against the predicted
+# change -0.45 / -1.38 m), so the hold's onset there reads |j|^2 > g4 V (g4 V 5.23 m^2, V 0.284 m^2): with the
+# predicted change |j|^2 is 2.11 (2.07) m^2, no hold, and both sides alarm on the spike's fix (22.0 s; 21.5 s,
+# and by E's per-row test 22.0-22.5 s). With the trapezoid there (the rule before: the hold's first fix and
+# the fix after a hold took it) d carries 1.04 m of the spike east, j = -0.43 / -2.42 m (6.05 m^2): the hold
+# starts at 22.0 s, the anchor (carried another 1.04 m at 22.5 s when the spike is on 22.0 s) holds the clean
+# fixes until the fix of 29.0 s steps back, and that golden model alarms on 22.0-28.5 s (21.5-28.5 s) and
+# parts from the C at 22.6 s: 1 flag event (within MAX_DISCRETE; the alarms' test catches it), 2 with the
+# spike on 21.5 s. Each case parts so with only its own half of the revision missing (CAR_SPIKE_HELD_2HZ the
+# hold's first fix, CAR_SPIKE_BEFORE_2HZ the fix after a hold).
+CAR_SPIKE_HELD_2HZ = ((22.0, 22.5, 0.0, 4.0, 90.0),)
+CAR_SPIKE_BEFORE_2HZ = ((21.5, 22.0, 0.0, 4.0, 90.0),)
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -851,6 +868,26 @@ CASES: dict[str, Case] = {
         receiver_model=True,
         gnss_faults=CAR_POS_BURST_RESTART_HELD,
         tol=TOL_COAST,
+    ),
+    # The position hold's d on a held fix and the fix after it (CAR_SPIKE_HELD_2HZ, CAR_SPIKE_BEFORE_2HZ);
+    # within TOL (measured 1.0e-5 rad of attitude, 9.4e-5 m, 6.1e-6 m/s^2, 1.8e-4 relative on gps_T).
+    "rows_car_spike_held_2hz_rx": Case(
+        "car_accel_brake",
+        "ground",
+        45.0,
+        {"gps_rate_hz": 2.0},
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_SPIKE_HELD_2HZ,
+    ),
+    "rows_car_spike_before_2hz_rx": Case(
+        "car_accel_brake",
+        "ground",
+        45.0,
+        {"gps_rate_hz": 2.0},
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_SPIKE_BEFORE_2HZ,
     ),
     "igg3_multirotor_pos_fault_e_rx": Case(
         "multirotor_aggressive",
@@ -1283,6 +1320,9 @@ ALARMED_FIXES: dict[str, tuple[tuple[float, float], ...]] = {
     "rows_car_pos_burst_restart_rx": ((20.0, 35.4),),  # released at 35.4 s, restarted at 37.0 s
     "rows_car_pos_vel_drift_rx": ((20.0, 35.4),),  # E's position out at 35.0 and 35.2 s, no restart
     "rows_car_pos_restart_held_rx": ((20.0, 37.0), (37.2, 50.0)),  # the restart at 37.0 s; released at 50.0 s
+    # a velocity spike held one fix, no position hold after it (the trapezoid as d: held to 28.5 s)
+    "rows_car_spike_held_2hz_rx": ((22.0, 22.5),),
+    "rows_car_spike_before_2hz_rx": ((21.5, 23.0),),  # and E's per-row test at 22.0-22.5 s
 }
 
 
@@ -1305,7 +1345,9 @@ def test_burst_held_by_the_positions_alarms_on_the_same_fixes_on_both_sides(name
     ``p_last`` NaN (their golden models without the rule alarm on other fixes: see each fault plan's
     comment). CAR_MISSED_BURST_2HZ's end of a missed burst, held, is released by the positions (session 32;
     without that release the clean fixes are held to the next burst, 32.0 s), and that burst held from its
-    first fix (the release not armed). Their restarts:
+    first fix (the release not armed). CAR_SPIKE_HELD_2HZ's and CAR_SPIKE_BEFORE_2HZ's spike, held one fix,
+    starts no position hold (the predicted change as its ``d`` on that fix and the next; with the trapezoid
+    the clean fixes are held to 28.5 s). Their restarts:
     test_position_hold_restarts_the_cs_at_the_same_fixes_on_both_sides."""
     case = CASES[name]
     rec = sim.scenario(case.scenario, seed=case.seed, duration_s=case.duration_s, **case.sim_kw).recording

@@ -18,8 +18,9 @@ in the modes other than fuzzy rows: no course observation), GPS step 1's velocit
 checks, GPS step 4's numerically failed axis update and its end of a position fault the CS took
 in with its position reference, ALGORITHMS.md 7's course gate and its guard, GPS step 3's aid of N and E
 once any yaw observation was made (session 26), the step test's held fixes' positions in fuzzy rows
-(session 27), GPS step 4's position hold in fuzzy rows and section 5's rows applied beside the N/E pair's
-(session 28), the history ring's spacing, which follows the fixes, 20-50 ms (session 29), the step test's
+(session 27), GPS step 4's position hold in fuzzy rows (its ``d`` the predicted change on the fixes the step
+test holds and the fix after them, as revised) and section 5's rows applied beside the N/E pair's (session
+28), the history ring's spacing, which follows the fixes, 20-50 ms (session 29), the step test's
 variance scale ``lambda`` and the return's size window's lower bound (session 31), and step by step
 against the C core in tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
@@ -232,7 +233,8 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     it held has ``n >= 1``, any other 0), in every mode the test runs in. Such a fix's jump is
     otherwise like any other's: counted past the bound, and it may return. The hold's first fix
     (``n = 1``) and the first fix after a hold take the velocities' ``d``, the latter with the last held
-    fix's velocity as ``v_prev`` (the spec's "of the last": step 7 remembers a held fix's velocity too).
+    fix's velocity as ``v_prev`` (the spec's "of the last": step 7 remembers a held fix's velocity too;
+    the position hold's ``d`` does not, choice 28).
     The first fix after a (re-)start has ``z_prev`` NaN, so no jump whichever ``d``. The bullets in the spec's
     order: the jump is added (when ``z_prev`` is not NaN and past the bound), then ``J`` decays (this
     fix's jump included), then ``z_prev = z``, then the return test with that ``J``: the axis returns when
@@ -357,10 +359,12 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     ``_PosHold``, with ``t_h`` and *holding*; every CS (re-)initialisation (home, a gap, step 3's end of a
     fault, the hold's restart) starts it afresh, and ``z_prev`` NaN.
     Before the update, on every fix past step 3 (a gap's re-initialisation skips it; aligned or not):
-    after step 3's test, its sums and the predict, ``d`` is choice 24's (the trapezoid of this fix's and
-    step 7's last N, E velocity, or ``p - p_0`` when either has none or the step test holds this fix after
-    the hold's first, ``n > 1`` after step 3), ``dz = z - z_prev`` (``z`` step 3's ``ned``), then ``z_prev =
-    z``; ``p_a``, ``e``, ``r`` only when aligned and *anchor*. "While *holding*" for ``t'`` is *holding* at
+    after step 3's test, its sums and the predict, ``d`` is the trapezoid of this fix's and step 7's last
+    N, E velocity, or ``p - p_0`` when either has none or ``n > 0`` before or after step 3's test (a fix the
+    step test holds, its first included, and the fix after a held one: the trapezoid would carry the held
+    velocity; ``n`` before is as the last fix left it, a gap's re-initialisation 0, a restart's kept; choice
+    24's rule keeps ``n > 1`` after), ``dz = z - z_prev`` (``z`` step 3's ``ned``), then ``z_prev = z``;
+    ``p_a``, ``e``, ``r`` only when aligned and *anchor*. "While *holding*" for ``t'`` is *holding* at
     the fix's start. ``w^2`` is this fix's N/E position variance of step 4 (the receiver model's
     ``min(h_acc, gps_pos_white_m)^2``, ``h_acc^2`` without it), ``V = 2 (w^2 + sigma_p^2 t' / tau_p)``;
     ``g2``, ``g4`` the 2-DOF quantiles (``e . s_p`` is one number, but the spec's). The step back is
@@ -391,7 +395,10 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     Checked against the C core (tests/python/test_nav_golden_vs_c.py): with section 5's rule before session
     28 the model parts from it on 11 of the 12 fuzzy-rows cases of before; *holding* at the fix's start for
     the restart, against *holding* read after the decision (CAR_POS_VEL_DRIFT: that reading restarts the CS
-    at the burst's end, which steps back while holding, and parts from the C at the fix after it).
+    at the burst's end, which steps back while holding, and parts from the C at the fix after it); the
+    trapezoid as ``d`` on the hold's first fix or the fix after a hold (the rule before its revision) starts
+    a hold from a velocity spike's trapezoid and holds clean fixes 6.5 s (CAR_SPIKE_HELD_2HZ,
+    CAR_SPIKE_BEFORE_2HZ).
 """
 
 from __future__ import annotations
@@ -1245,6 +1252,7 @@ class Nav:
         try:
             # Step 3's velocity step test (it may hold the fix; in fuzzy rows move the N, E detectors'
             # D), then the predict, plain or coasting, with the IMU-aided test priors.
+            n_0 = self.vst.n  # fixes held before this one's test
             ran, held = self._velocity_step_test(fx, T, incs, has_ne)
             # after the test, in fuzzy rows: a held fix's position and velocity summed, p_last (choice 27)
             self._held_positions(fx, T, ned, held)
@@ -1254,10 +1262,11 @@ class Nav:
             rule = self._position_return(
                 ned, T, r_h, p_0, fx.vel[:2] if has_ne else None, predicted=self.vst.n > 1
             )
-            # GPS step 4's position hold (fuzzy rows, choice 28): its anchor carried on by the same d, the
-            # hold or its release before the update (a held fix's N and E position rows go out)
+            # GPS step 4's position hold (fuzzy rows, choice 28): its anchor carried on by the same d, but the
+            # predicted change on every fix the step test holds and the fix after a held one (n > 0 before or
+            # after the test), the hold or its release before the update (a held fix's position rows go out)
             v_ne = fx.vel[:2] if has_ne else None
-            hf = self._position_hold(ned, T, r_h, p_0, v_ne, predicted=self.vst.n > 1)
+            hf = self._position_hold(ned, T, r_h, p_0, v_ne, predicted=n_0 > 0 or self.vst.n > 0)
             # Step 4: CS update in the robust modes (ALGORITHMS.md 3, 5); its inputs were bounded at
             # step 1, so only an axis update failing numerically (SINGULAR, NONFINITE) is an error here.
             reports, failures = self.cs.update_robust_partial(
@@ -1465,8 +1474,9 @@ class Nav:
         """GPS step 4's ``d`` of N and E, what the position return rule and the position hold carry the
         fixes on by: the trapezoid ``T (v + v_prev) / 2`` of this fix's N, E velocity ``v_ne`` and the last
         fix's (step 7 remembered it), or the CS's predicted change ``p - p_0`` when either fix has no N/E
-        velocity or ``predicted`` (a fix the velocity step test holds after the hold's first: its velocity
-        carries the fault)."""
+        velocity or ``predicted`` (the held velocity carries the fault: for the position return rule a fix
+        the velocity step test holds after the hold's first, for the position hold any fix it holds and the
+        fix after a held one)."""
         v_prev = self.prev_vel[:2] if self.prev_has_vel[0] else None
         if not predicted and v_ne is not None and v_prev is not None:
             return T * (np.array(v_ne[:2], dtype=np.float64) + np.array(v_prev, dtype=np.float64)) / 2.0
@@ -1484,8 +1494,9 @@ class Nav:
         """ALGORITHMS.md 8, GPS step 4, "The position hold" (session 28, choice 28), before the update: in
         fuzzy rows, on N and E, after step 3's predict and the step test's sums (which read ``z_prev`` as
         ``p_last``), with ``d`` the position rule's (the trapezoid of this fix's and the last fix's N, E
-        velocities, or the predicted change ``p - p_0`` without them or when ``predicted``, a fix the step
-        test holds after the hold's first) and ``dz = z - z_prev``: ``z_prev = z``; when aligned and
+        velocities, or the predicted change ``p - p_0`` without them or when ``predicted``: ``n > 0`` before
+        or after step 3's test, a fix the step test holds, its first included, or the fix after a held one)
+        and ``dz = z - z_prev``: ``z_prev = z``; when aligned and
         *anchor*, ``p_a += d``, ``e = z - p_a``, ``r = dz - d``. With ``t' = t_h + T`` while *holding* (``T``
         otherwise) and ``V = 2 (w^2 + sigma_p^2 t' / tau_p)`` (``w2`` this fix's N/E position variance
         after the receiver model; ``sigma_p``, ``tau_p`` of ``cs_h``), the fix *steps back* when ``r . s_p <
