@@ -439,7 +439,8 @@ static inline int fuzzy_rows(const mca_robust_config_t *rc)
 /* mca_nav_t.step_flags; PRE: the step test ran on the last fix (so u.step.pre is its); RET: this
  * fix restarts the CS, the end of a fault it took in (set by gps_cs: GPS steps 3 and 4); REF:
  * u.step.ref holds the position reference, in fuzzy rows the position hold's anchor (aligned only,
- * set by gps_cs: GPS step 4); PHOLD: fuzzy rows' position hold holds (GPS step 4) */
+ * set by gps_cs: GPS step 4); PHOLD: fuzzy rows' position hold holds, PIN: and the whole-update
+ * guard took its step in (GPS step 4) */
 enum {
     STEP_ANCHOR = 1u,
     STEP_ARMED = 2u,
@@ -447,7 +448,8 @@ enum {
     STEP_PRE = 8u,
     STEP_RET = 16u,
     STEP_REF = 32u,
-    STEP_PHOLD = 64u
+    STEP_PHOLD = 64u,
+    STEP_PIN = 128u
 };
 
 /* The fuzzy memories of N and E: a hold of the rows held (MCA_CS_POS or MCA_CS_VEL) leaves them out
@@ -845,7 +847,7 @@ static void cs_start(mca_nav_t *nav, const float ned[3], const float vel[3])
         nav->pos_prev[i] = NAN;
         nav->pos_jump[i] = 0.0f;
     }
-    nav->step_flags &= (uint8_t)~(STEP_REF | STEP_PHOLD); /* and its reference: the next quiet fix's */
+    nav->step_flags &= (uint8_t)~(STEP_REF | STEP_PHOLD | STEP_PIN); /* and its reference: the next quiet fix's */
 }
 
 /* The position hold before the update (fuzzy rows; ALGORITHMS.md 8, GPS step 4): the anchor
@@ -860,6 +862,7 @@ MCA_NOINLINE static int pos_hold(mca_nav_t *nav, const float ned[3], const float
 {
     const int pref = nav->aligned && (nav->step_flags & STEP_REF) != 0u;
     const int holding = (nav->step_flags & STEP_PHOLD) != 0u;
+    const int pin = (nav->step_flags & STEP_PIN) != 0u;
     const float hs = (holding ? nav->pos_hold_s : 0.0f) + t;
     const float v = hold_var(nav, w, hs);
     float es = 0.0f, ss = 0.0f, rs = 0.0f, rr = 0.0f, ee = 0.0f, jj = 0.0f;
@@ -892,13 +895,14 @@ MCA_NOINLINE static int pos_hold(mca_nav_t *nav, const float ned[3], const float
              es * es > mca_chi2_quantile(2u, MCA_CHI2_5E3) * ss * v)) {
             step_dk(nav, MCA_CS_POS);
         } else {
-            nav->step_flags &= (uint8_t)~(STEP_PHOLD | STEP_REF);
+            nav->step_flags &= (uint8_t)~(STEP_PHOLD | STEP_REF | STEP_PIN);
             if (nav->step_hold == 0u) {
                 step_dk(nav, 0u);
             }
         }
     }
-    return pref && !holding ? (back ? PH_RESTART : jj > g4 * v ? PH_START : 0) : 0;
+    /* while holding, the step back restarts only a CS that the guard took the step into */
+    return !pref ? 0 : back && (!holding || pin) ? PH_RESTART : !holding && jj > g4 * v ? PH_START : 0;
 }
 
 /* GPS steps 2-4 of a fix within dt_max of the last one (ALGORITHMS.md 8): the CS predict to
@@ -1003,6 +1007,8 @@ MCA_NOINLINE static mca_status_t gps_cs(mca_nav_t *nav, const mca_gps_fix_t *fix
         } else if (rows && nav->aligned && (nav->step_flags & STEP_PHOLD) == 0u) {
             mca_copyf(nav->u.step.ref, ned, 2u);
             nav->step_flags |= STEP_REF;
+        } else if (!out && (nav->step_flags & STEP_PHOLD) != 0u) {
+            nav->step_flags |= STEP_PIN; /* held, and the position rows went in: the guard's plain update */
         }
         /* the position reference: the CS position of a fix nothing was suspect in (no jump, no
          * fault pending, not flagged, not held), carried on by the fixes' motion (pos_return) */
@@ -1162,7 +1168,7 @@ mca_status_t mca_nav_gps(mca_nav_t *nav, const mca_gps_fix_t *fix)
                                                      (nav->cs.axis[0].aid.out | nav->cs.axis[1].aid.out) == 0u);
         mca_copyf(nav->u.step.v, fv.vel_ned_mps, 2u);
         nav->u.step.var = fv.s_acc_mps * fv.s_acc_mps;
-        nav->step_flags = (uint8_t)((nav->step_flags & (STEP_ARMED | STEP_REF | STEP_PHOLD)) |
+        nav->step_flags = (uint8_t)((nav->step_flags & (STEP_ARMED | STEP_REF | STEP_PHOLD | STEP_PIN)) |
                                     (ok ? STEP_ANCHOR : 0u) | ((nav->step_flags & STEP_TESTED) != 0u ? STEP_PRE : 0u));
     }
     nav->prev_vel_mask = fv.vel_mask;

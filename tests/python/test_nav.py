@@ -963,6 +963,31 @@ def test_velocity_step_test_positions_release_a_missed_bursts_end() -> None:
     assert not clean_alarm.any()
 
 
+def test_position_hold_restarts_after_the_whole_update_guard_takes_a_burst_of_both_in() -> None:
+    """ALGORITHMS.md 8, GPS step 4, and section 5's lock-up guard: a 20 s burst of both (23.9 m and
+    1.4 m/s, the one ``bench_outliers.py --sim gps_rate_hz=2`` has on seed 29's car) on the simulated
+    car at 2 Hz, through a stop. The step test holds its velocity and the position hold its position,
+    so every update is rejected, and at the 40th fix, the fault's last, the guard (20 s of fixes) does
+    the update plain and the CS takes the fault in. The hold goes on with its step marked as taken,
+    and the first clean fix, stepping back, restarts the CS. Before (the step back only ended the
+    hold): a new hold started on the clean fixes against a CS inside the fault, and all 40 of the 20 s
+    after the burst were alarmed, the position 22.9 m off the outlier-free run; now none, within 2.6 m
+    (the receiver's wander on the restart's fix). The outlier-free run raises no alarm."""
+    rec, clean, clean_alarm, run, alarm, sel, after = _fuzzy_rows_fault(
+        "car_accel_brake", "ground", 4, 230.0, (136.0, 156.0, (23.9, 0.35), (0.27, 1.39)), (156.0, 176.0),
+        gps_rate_hz=2.0,
+    )
+    at_fix = _fix_rows(run, rec.gnss)
+    dp = run["pos_ned_m"][at_fix, :2].astype(np.float64) - clean["pos_ned_m"][at_fix, :2]
+    off = np.hypot(dp[:, 0], dp[:, 1])
+    print(sel.sum(), alarm[sel].sum(), alarm[after].sum(), off[after].max())
+    assert sel.sum() == 40  # the scenario: as long as the guard
+    assert alarm[sel][:-1].all() and not alarm[sel][-1]  # the guard took the last fix in
+    assert alarm[after].sum() <= 2
+    assert off[after].max() < 5.0
+    assert not clean_alarm.any()
+
+
 def test_velocity_step_test_releases_a_burst_at_a_return_larger_than_its_first_step() -> None:
     """ALGORITHMS.md 8, GPS step 3, the return while fuzzy rows' positions say the held step: a
     2 m/s velocity burst on the simulated car whose first fix is half of it (the held step,

@@ -488,6 +488,15 @@ CAR_POS_BURST_RESTART_HELD = CAR_POS_BURST_RESTART + ((36.0, 54.0, 0.0, 1.1, 90.
 # hold's first fix, CAR_SPIKE_BEFORE_2HZ the fix after a hold).
 CAR_SPIKE_HELD_2HZ = ((22.0, 22.5, 0.0, 4.0, 90.0),)
 CAR_SPIKE_BEFORE_2HZ = ((21.5, 22.0, 0.0, 4.0, 90.0),)
+# The lock-up guard inside a position hold (GPS step 4, session 33): a 20 s burst of both, 23.9 m and 1.4 m/s
+# at azimuth 30 deg, on the car of seed 1 at 2 Hz (the size of bench_outliers.py --sim gps_rate_hz=2, seed
+# 29's car). The step test holds its velocity and the position hold its position, so each update is rejected
+# and the 40th, the burst's last fix (39.5 s), is the whole-update guard's: done plain, the CS takes the burst
+# in, which sets *taken*; the hold goes on, and the first clean fix (40.0 s) steps back while holding with
+# *taken* set: the CS restarts. With the step back only ending the hold (the C before; at azimuths 0, 79 and
+# 200 deg the step test's return restarts it there anyway) the clean fixes stood the held step from a CS
+# inside the burst and a new hold started on them: alarmed from 40.0 s to the end, no restart.
+CAR_GUARD_BOTH_2HZ = ((20.0, 40.0, 23.9, 1.4, 30.0),)
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -888,6 +897,16 @@ CASES: dict[str, Case] = {
         profile="fuzzy-rows",
         receiver_model=True,
         gnss_faults=CAR_SPIKE_BEFORE_2HZ,
+    ),
+    "rows_car_guard_both_2hz_rx": Case(
+        "car_accel_brake",
+        "ground",
+        52.0,
+        {"gps_rate_hz": 2.0},
+        profile="fuzzy-rows",
+        receiver_model=True,
+        gnss_faults=CAR_GUARD_BOTH_2HZ,
+        tol=TOL_GUARD_BOTH,
     ),
     "igg3_multirotor_pos_fault_e_rx": Case(
         "multirotor_aggressive",
@@ -1323,6 +1342,8 @@ ALARMED_FIXES: dict[str, tuple[tuple[float, float], ...]] = {
     # a velocity spike held one fix, no position hold after it (the trapezoid as d: held to 28.5 s)
     "rows_car_spike_held_2hz_rx": ((22.0, 22.5),),
     "rows_car_spike_before_2hz_rx": ((21.5, 23.0),),  # and E's per-row test at 22.0-22.5 s
+    # the burst's fixes but its last, which the whole-update guard takes in (restarted at 40.0 s)
+    "rows_car_guard_both_2hz_rx": ((20.0, 39.5),),
 }
 
 
@@ -1379,6 +1400,7 @@ HOLD_RESTARTS: dict[str, tuple[float, ...]] = {
     "rows_car_pos_vel_drift_rx": (),
     "rows_car_pos_restart_held_rx": (37.0, 54.0),
     "rows_car_missed_burst_2hz_rx": (),  # the release by the positions (29.0 s, flagged) restarts nothing
+    "rows_car_guard_both_2hz_rx": (40.0,),  # the step back after the guard's fix
 }
 
 

@@ -356,8 +356,9 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     The state: ``z_prev`` is ``_PosJumps``' (shared with choice 27's ``p_last``); the spec stores ``p_a``,
     ``s_p`` and *anchor* in the position rule's ``p_ref``, ``J`` and *ref*, which that rule never touches
     in fuzzy rows (choices 24, 25) and the hold never outside them, so the model keeps them apart, in
-    ``_PosHold``, with ``t_h`` and *holding*; every CS (re-)initialisation (home, a gap, step 3's end of a
-    fault, the hold's restart) starts it afresh, and ``z_prev`` NaN.
+    ``_PosHold``, with ``t_h``, *holding* and *taken* (session 33); every CS (re-)initialisation (home, a
+    gap, step 3's end of a fault, the hold's restart) starts it afresh (the three flags clear), and
+    ``z_prev`` NaN.
     Before the update, on every fix past step 3 (a gap's re-initialisation skips it; aligned or not):
     after step 3's test, its sums and the predict, ``d`` is the trapezoid of this fix's and step 7's last
     N, E velocity, or ``p - p_0`` when either has none or ``n > 0`` before or after step 3's test (a fix the
@@ -373,25 +374,29 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     as written (``0.25 |s_p|^2 <= |r|^2 <= 2.25 |s_p|^2``). The guard reads N's position row's
     ``n_removed`` (row 0) before this update against ``cs_h.robust.reject_reset_n`` (``<``: 0 makes the
     significance the only way to stay held). Held: N's and E's ``caller_out`` of row 0 and ``D =
-    max(D, 2)``; released: *holding* and *anchor* clear, ``s_p`` and ``t_h`` kept, ``D = min(D, 1)`` on N
-    and E when the step test's ``n`` after step 3 is 0. These ``D`` changes come after the step test's (so
-    a hold of either alarms) and before the N/E pair's plans, as the step test's (choice 20).
+    max(D, 2)``; released: *holding*, *anchor* and *taken* clear, ``s_p`` and ``t_h`` kept, ``D = min(D,
+    1)`` on N and E when the step test's ``n`` after step 3 is 0. These ``D`` changes come after the step
+    test's (so a hold of either alarms) and before the N/E pair's plans, as the step test's (choice 20).
     After the update: "the update of N or E left its position row out" is N's or E's memory with
     ``n_removed[0] > 0`` after step 4 (a rejection or a lock-up reset counts as the memory says: a reset
     clears it; an axis whose update failed numerically keeps the memory it had, choice 22). The restart
     is read first: a fix that stepped back (so aligned, with *anchor* at its start), whose *holding* was
-    clear at its start (a fix that steps back while holding only ends the hold, whatever its update did),
-    and whose N or E update left its position row out, restarts the CS after step 4 as step 3's end of a
-    fault does (choice 23: every axis at the fix, from the position reference never, since *ref* is never
-    set in fuzzy rows; memories, coasting marks and priors cleared, ``a_last`` 0, the step test's ``n`` as
-    it is; steps 5-6 skipped, step 7 done as after an update, choice 24's anchor rule). Any restart of the
-    fix (this one, or step 3's end of a fault the CS took in) skips the part after the update. Otherwise,
-    aligned and not *holding* (after the decision: a fix released this time is not holding): a fix that
-    stepped back sets ``s_p = 0``; then ``j = z - p_a`` (``p_a`` as carried before the update; *anchor* as
-    the decision left it) and the onset when *anchor*, the position row out, ``|j|^2 > g4 V`` (``V`` of
-    this fix, ``t' = T``) and no step back: *holding*, ``s_p = j``, ``t_h = 0``; otherwise ``p_a = z``,
-    *anchor* set (so a released fix, or any fix not holding, re-anchors at itself). A step 1 error, or an
-    input check of step 4, leaves all of it as it was.
+    clear at its start or whose *taken* was set at its start (session 33; a fix that steps back while
+    holding without *taken* only ends the hold, whatever its update did), and whose N or E update left
+    its position row out, restarts the CS after step 4 as step 3's end of a fault does (choice 23: every
+    axis at the fix, from the position reference never, since *ref* is never set in fuzzy rows;
+    memories, coasting marks and priors cleared, ``a_last`` 0, the step test's ``n`` as it is; steps 5-6
+    skipped, step 7 done as after an update, choice 24's anchor rule). Any restart of the fix (this one,
+    or step 3's end of a fault the CS took in) skips the part after the update. Otherwise, *holding*
+    (after the decision: a kept hold) with N's and E's memories both at ``n_removed[0] = 0`` after the
+    update (only section 5's whole-update guard applies a held fix's position rows) sets *taken* (session
+    33; the hold goes on, nothing else changes; *taken* is read at a fix's start, so the fix that sets it
+    is no restart); aligned and not *holding* (after the decision: a fix released this time is not
+    holding): a fix that stepped back sets ``s_p = 0``; then ``j = z - p_a`` (``p_a`` as carried before
+    the update; *anchor* as the decision left it) and the onset when *anchor*, the position row out,
+    ``|j|^2 > g4 V`` (``V`` of this fix, ``t' = T``) and no step back: *holding*, ``s_p = j``, ``t_h =
+    0``; otherwise ``p_a = z``, *anchor* set (so a released fix, or any fix not holding, re-anchors at
+    itself). A step 1 error, or an input check of step 4, leaves all of it as it was.
     Checked against the C core (tests/python/test_nav_golden_vs_c.py): with section 5's rule before session
     28 the model parts from it on 11 of the 12 fuzzy-rows cases of before; *holding* at the fix's start for
     the restart, against *holding* read after the decision (CAR_POS_VEL_DRIFT: that reading restarts the CS
@@ -755,14 +760,16 @@ class _PosJumps:
 class _PosHold:
     """The position hold (ALGORITHMS.md 8, GPS step 4, session 28; fuzzy rows, choice 28): N and E's anchor
     ``p_a`` carried on by the fixes' ``d``, the held step ``s_p``, the hold's time ``t_h`` and the flags
-    *anchor* (``p_a`` exists) and *holding*; ``z_prev`` is ``_PosJumps``'. Every CS (re-)initialisation
-    starts it afresh (``_cs_restart``)."""
+    *anchor* (``p_a`` exists), *holding* and *taken* (the hold's step went into the CS, session 33);
+    ``z_prev`` is ``_PosJumps``'. Every CS (re-)initialisation starts it afresh (``_cs_restart``), the three
+    flags clear."""
 
     p_a: np.ndarray = field(default_factory=lambda: np.zeros(2))
     s_p: np.ndarray = field(default_factory=lambda: np.zeros(2))
     t_h: float = 0.0
     anchor: bool = False
     holding: bool = False
+    taken: bool = False  # session 33: a held fix's update kept N's and E's position rows in (the guard's)
 
 
 class _HoldFix(NamedTuple):
@@ -771,6 +778,7 @@ class _HoldFix(NamedTuple):
     ran: bool  # fuzzy rows: the rule ran on this fix
     stepped_back: bool  # the fix steps back (aligned and *anchor* at its start)
     was_holding: bool  # *holding* at the fix's start
+    was_taken: bool  # *taken* at the fix's start (session 33: a step back then restarts the CS)
     z: np.ndarray  # the fix's N and E position
     V: float  # the receiver's position error over t', 2 (w^2 + sigma_p^2 t' / tau_p)
 
@@ -1297,10 +1305,11 @@ class Nav:
         # GPS step 4, the end of a position fault the CS took in: N or E returned (choice 24), the same
         # restart.
         vel_end = self.vst.ended and any(self._flags_end(i, reports[i], masks[i]) for i in (0, 1))
-        # GPS step 4, the position hold's restart: a fix that steps back while not holding, whose update of
-        # N or E left its position row out (choice 28)
+        # GPS step 4, the position hold's restart: a fix that steps back while not holding, or while holding
+        # with *taken* set at its start (session 33), whose update of N or E left its position row out
+        # (choice 28)
         pos_out = any(ax.mem.n_removed[0] > 0 for ax in self.cs.axes[:2])
-        hold_end = hf.stepped_back and not hf.was_holding and pos_out
+        hold_end = hf.stepped_back and (not hf.was_holding or hf.was_taken) and pos_out
         restart = vel_end or rule.returned or hold_end
         # GPS step 6's flag of this fix (its N and E updates, read before any restart clears their marks)
         flagged = any(self._flags_fix(i, reports[i], masks[i]) for i in (0, 1))
@@ -1311,7 +1320,7 @@ class Nav:
             # a quiet fix: the position reference is the CS position after the update (choice 25)
             self.jumps.p_ref = np.array([float(ax.x[0]) for ax in self.cs.axes[:2]])
             self.jumps.ref = True
-        if not restart:  # the position hold after the update: the onset, or the anchor at this fix
+        if not restart:  # the position hold after the update: the onset, the anchor at this fix, or *taken*
             self._position_hold_after(hf, pos_out)
         if failure is not None or restart:
             # GPS step 4: the failed axes stay as predicted, the others updated; the CS was predicted
@@ -1377,8 +1386,8 @@ class Nav:
         end of a position fault the CS took in, and at the position hold's restart): the axes start afresh
         (robust memories, coasting marks and priors cleared, choice 17), the compensation acceleration
         (``a_last``) is 0, and the N and E jump memory is cleared (``z_prev`` NaN, ``J = 0``, the position
-        reference's *ref* clear), as is the position hold's (``s_p = 0``, *anchor* and *holding* clear,
-        choice 28). With
+        reference's *ref* clear), as is the position hold's (``s_p = 0``, *anchor*, *holding* and *taken*
+        clear, choice 28, session 33). With
         ``from_ref`` (an end of a fault whose fix has *ref* set and both N and E near ``p_ref``, choice
         25) N and E start at ``p_ref`` with position variance ``sigma_p_m^2`` in place of ``p0_var_m2``;
         D, the velocities and the rest as at the fix. The velocity step test's ``n`` is left as it is
@@ -1506,18 +1515,18 @@ class Nav:
         and either N's position row was left out by fewer than ``reject_reset_n`` updates in a row (N's
         memory before the update) or ``(e . s_p)^2 > g2 |s_p|^2 V``: N's and E's position rows then go out
         of their updates (the memories' ``caller_out``, the N/E pair's rows) and their detectors take ``D =
-        max(D, 2)``; otherwise the hold ends (*holding* and *anchor* clear, ``s_p`` kept) and, when the
-        step test holds nothing (``n = 0`` after step 3), ``D = min(D, 1)``. Returns what the part after
+        max(D, 2)``; otherwise the hold ends (*holding*, *anchor* and *taken* clear, ``s_p`` kept) and, when
+        the step test holds nothing (``n = 0`` after step 3), ``D = min(D, 1)``. Returns what the part after
         the update needs; a mode other than fuzzy rows changes nothing (``ran`` False)."""
         if not self._step_test_rows():
-            return _HoldFix(False, False, False, np.zeros(2), 0.0)
+            return _HoldFix(False, False, False, False, np.zeros(2), 0.0)
         h, cfg_h = self.hold, self.cfg.cs_h
         n_ax, e_ax = self.cs.axes[0], self.cs.axes[1]
         z = np.array([float(ned[0]), float(ned[1])])
         d = self._fix_motion(T, p_0, v_ne, predicted)
         dz = z - self.jumps.z_prev  # NaN after a CS (re-)initialisation
         self.jumps.z_prev = z.copy()
-        was_holding = h.holding
+        was_holding, was_taken = h.holding, h.taken
         active = self.aligned and h.anchor
         e = r = np.zeros(2)
         if active:
@@ -1548,21 +1557,30 @@ class Nav:
                 for ax in (n_ax, e_ax):
                     ax.mem.caller_out[0] = True
                     ax.mem.d_k = max(ax.mem.d_k, HOLD_D_HELD)
-            else:  # the hold ends; s_p stays (the step may still be in)
-                h.holding = h.anchor = False
+            else:  # the hold ends (*taken* with it, session 33); s_p stays (the step may still be in)
+                h.holding = h.anchor = h.taken = False
                 if self.vst.n == 0:
                     for ax in (n_ax, e_ax):
                         ax.mem.d_k = min(ax.mem.d_k, HOLD_D_RELEASE)
-        return _HoldFix(True, stepped_back, was_holding, z, V)
+        return _HoldFix(True, stepped_back, was_holding, was_taken, z, V)
 
     def _position_hold_after(self, hf: _HoldFix, pos_out: bool) -> None:
         """ALGORITHMS.md 8, GPS step 4, the position hold after the update (choice 28), on a fix the CS did
-        not restart on, aligned and not *holding*: a fix that steps back sets ``s_p = 0``; then, with ``j =
+        not restart on. *Holding* (after the decision), with the updates of N and E both keeping their
+        position rows in (``pos_out`` False: ``n_removed`` of the position row 0 on both after the update;
+        only section 5's whole-update guard does that to a held fix): *taken* is set and the hold goes on
+        (session 33). Aligned and not *holding*: a fix that steps back sets ``s_p = 0``; then, with ``j =
         z - p_a``, when *anchor* is set, ``pos_out`` (the update of N or E left its position row out: the
         memory's ``n_removed`` of the position row > 0 after it), ``|j|^2 > g4 V`` and the fix did not step
         back, the hold starts (*holding*, ``s_p = j``, ``t_h = 0``); otherwise ``p_a = z`` and *anchor*."""
         h = self.hold
-        if not (hf.ran and self.aligned) or h.holding:
+        if not hf.ran:
+            return
+        if h.holding:  # the held step went into the CS: its end (a step back) restarts it
+            if not pos_out:
+                h.taken = True
+            return
+        if not self.aligned:
             return
         if hf.stepped_back:
             h.s_p = np.zeros(2)
