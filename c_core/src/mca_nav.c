@@ -375,7 +375,8 @@ static void integrate(const mca_nav_t *nav, const mca_hist_entry_t *e, int32_t o
 
 /* IMU velocity and position increments over (t0, t1] from the history ring into inc[i].dv_mps
  * and dp_m (ALGORITHMS.md 8, GPS step 3): entry k covers (t_k-1, t_k] with its mean f and its
- * q; past the newest entry its acceleration is held for at most one entry interval. 1 when the
+ * q; past the newest entry its acceleration is held for at most two spacings (an entry pushed
+ * once its samples reach one, and a fix up to a sample past the newest: session 33). 1 when the
  * ring covers the interval (the oldest entry ends at or before t0) and no entry used is
  * saturated; 0 otherwise. */
 static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_cs_inc_t inc[3])
@@ -412,7 +413,7 @@ static int hist_increments(const mca_nav_t *nav, uint64_t t0, uint64_t t1, mca_c
     }
     if (prev < 0) {
         const mca_hist_entry_t *e = hist_newest(nav);
-        if (-prev > (int32_t)nav->hist_dt_q * 250 || e->saturated) {
+        if (-prev > (int32_t)nav->hist_dt_q * 500 || e->saturated) {
             return 0;
         }
         integrate(nav, e, -prev, inc);

@@ -21,8 +21,9 @@ once any yaw observation was made (session 26), the step test's held fixes' posi
 (session 27), GPS step 4's position hold in fuzzy rows (its ``d`` the predicted change on the fixes the step
 test holds and the fix after them, as revised) and section 5's rows applied beside the N/E pair's (session
 28), the history ring's spacing, which follows the fixes, 20-50 ms (session 29), the step test's
-variance scale ``lambda`` and the return's size window's lower bound (session 31), and step by step
-against the C core in tests/python/test_nav_golden_vs_c.py)
+variance scale ``lambda`` and the return's size window's lower bound (session 31), GPS step 3's hold of
+the newest entry's acceleration for at most ``2 dt_h`` (session 33), and step by step against the C
+core in tests/python/test_nav_golden_vs_c.py)
 ------------------------------------------------------------------------------------------
 1.  Times (ALGORITHMS.md 8): every configured duration (``grav_period_s``, ``gps_timeout_s``,
     ``init_still_s``, ``init_timeout_s``, ``cs_lag_s``, ``imu_dt_max_s``, the CS ``dt_max_s``
@@ -109,9 +110,10 @@ against the C core in tests/python/test_nav_golden_vs_c.py)
     (``FLAG_ALARM_N << axis``). The reported ``gps_T`` is each update's tested T.
 14. IMU increments (GPS step 3): ring entries as consecutive (previous end, end] intervals, the
     oldest one only as the start of the next; the interval's end past the newest entry holds the
-    newest entry's acceleration for at most the spacing ``dt_h`` (choice 2, the value the fixes
-    before this one set, whatever spacing the newest entry was pushed at); any saturated entry that
-    overlaps the interval, or one held, turns the aid off for all axes.
+    newest entry's acceleration for at most twice the spacing, ``2 dt_h`` (session 33, one ``dt_h``
+    before; ``dt_h`` is choice 2's, the value the fixes before this one set, whatever spacing the
+    newest entry was pushed at; the bound is inclusive: an end exactly ``2 dt_h`` past is held);
+    any saturated entry that overlaps the interval, or one held, turns the aid off for all axes.
 15. The IMU-aided N and E (GPS step 3, session 26): "once any yaw observation was made" is a yaw
     observation or the yaw alignment taken since the reset (``t_yaw_us`` set; the first one made is
     always the alignment, which the course gate does not refuse), however long ago: the
@@ -1785,7 +1787,8 @@ class Nav:
     def _imu_increments(self, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Velocity and position increments (dv = int a, dp = int int a) over (t0, t1] from the
         history ring, a = C_nb(q) f + [0, 0, g] per entry (ALGORITHMS.md 8, GPS step 3); None when
-        the ring does not cover the interval or a saturated entry is used."""
+        the ring does not cover the interval, reaches more than 2 dt_h past the newest entry (whose
+        a is held up to there; session 33, one dt_h before) or a saturated entry is used."""
         h = list(self.hist)
         if len(h) < 2 or h[0].t_us > t0:
             return None
@@ -1807,7 +1810,8 @@ class Nav:
             add(e, hi - lo)
         last = h[-1]
         if t1 > last.t_us:
-            if t1 - last.t_us > self.hist_dt_us or last.saturated:
+            # Held for at most twice the spacing (ALGORITHMS.md 8, GPS step 3, session 33; choice 14).
+            if t1 - last.t_us > 2 * self.hist_dt_us or last.saturated:
                 return None
             add(last, t1 - last.t_us)
         return dp, dv
