@@ -422,6 +422,28 @@ def test_gps_latency(latency_us, jitter_us):
     assert np.all(np.diff(g["t_us"]) == round(1e6 / p.gps_rate_hz))
 
 
+def test_imu_time_jitter_moves_the_reported_times_only():
+    """imu_time_jitter_us: each IMU sample's reported time is off its sampling instant by a uniform
+    integer in [-j, j] us (clipped at 0), still increasing; the samples, the fixes, the magnetometer and
+    the reference are those of the run without it (a generator of its own), and ideal() turns it off."""
+    a = scenario("car_accel_brake", seed=3, duration_s=20.0)
+    b = scenario("car_accel_brake", seed=3, duration_s=20.0, imu_time_jitter_us=600)
+    d = b.recording.imu["t_us"] - a.recording.imu["t_us"]
+    assert d.min() >= -600 and d.max() <= 600 and np.unique(d).size > 1000
+    assert np.all(b.recording.imu["t_us"] >= 0) and np.all(np.diff(b.recording.imu["t_us"]) > 0)
+    # the intervals sum to under the history's 20 ms span as often as over it (what the option is for)
+    span = b.recording.imu["t_us"][8:] - b.recording.imu["t_us"][:-8]
+    assert 0.3 < np.mean(span < 20_000) < 0.7
+    for field in ("gyro_rps", "accel_mps2"):
+        np.testing.assert_array_equal(a.recording.imu[field], b.recording.imu[field])
+    np.testing.assert_array_equal(a.recording.gnss, b.recording.gnss)
+    np.testing.assert_array_equal(a.recording.mag, b.recording.mag)
+    np.testing.assert_array_equal(a.recording.ref, b.recording.ref)
+    assert SimParams(imu_time_jitter_us=600).ideal().imu_time_jitter_us == 0
+    with pytest.raises(ValueError, match="imu_time_jitter_us"):
+        scenario("steady", seed=1, duration_s=5.0, imu_time_jitter_us=1250)  # half of a 400 Hz sample
+
+
 @needs_pymap3d
 def test_gps_lat_lon_round_trip_to_ned_within_quantization():
     res = scenario("fixedwing_turns", ideal=True)

@@ -328,8 +328,9 @@ SCENARIOS: dict[str, Callable[..., Plan]] = {
 
 # --------------------------------------------------------------------------- driver
 def _generators(seed: int) -> list[np.random.Generator]:
-    """Independent generators: trajectory, gyro, accel, gnss, mag."""
-    return [np.random.Generator(np.random.PCG64(s)) for s in np.random.SeedSequence(seed).spawn(5)]
+    """Independent generators: trajectory, gyro, accel, gnss, mag, IMU time jitter (a child's draws do
+    not depend on how many there are: adding one left the others' as they were)."""
+    return [np.random.Generator(np.random.PCG64(s)) for s in np.random.SeedSequence(seed).spawn(6)]
 
 
 def simulate(plan: Plan, params: SimParams | None = None, seed: int = 0, name: str = "custom") -> SimResult:
@@ -342,11 +343,16 @@ def simulate(plan: Plan, params: SimParams | None = None, seed: int = 0, name: s
         p = replace(p, g_mps2=normal_gravity(p.home_lat_deg, p.home_alt_m))
     if not (p.imu_rate_hz > 0 and plan.duration_s > 0):
         raise ValueError("imu_rate_hz and duration_s must be > 0")
-    _, rng_gyro, rng_accel, rng_gps, rng_mag = _generators(seed)
+    if not 0 <= p.imu_time_jitter_us < 0.5e6 / p.imu_rate_hz:
+        raise ValueError(f"imu_time_jitter_us must be in [0, half a sample) us, got {p.imu_time_jitter_us}")
+    _, rng_gyro, rng_accel, rng_gps, rng_mag, rng_time = _generators(seed)
     n = int(math.floor(plan.duration_s * p.imu_rate_hz + 1e-9)) + 1
     t_us = np.rint(np.arange(n) * (1e6 / p.imu_rate_hz)).astype(np.int64)
     truth = build_truth(plan.motion, plan.rule, t_us, p.g_mps2, plan.pos0_ned_m, plan.rule_kw)
     imu = imu_model(truth, p, rng_gyro, rng_accel)
+    if p.imu_time_jitter_us:  # the reported times only: the samples are of the true instants
+        j = int(p.imu_time_jitter_us)
+        imu["t_us"] = np.maximum(imu["t_us"] + rng_time.integers(-j, j + 1, len(imu)), 0)  # (times >= 0)
     gnss = gnss_model(truth, p, rng_gps)
     mag = mag_model(truth, p, rng_mag)
     ref = np.zeros(n, REF_DTYPE)

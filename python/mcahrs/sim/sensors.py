@@ -71,6 +71,9 @@ class SimParams:
 
     # timing
     imu_rate_hz: float = 400.0
+    # reported IMU times off the sampling instants by a uniform integer in [-j, j] us (a driver's
+    # timestamps: intervals that sum to a little under a span as often as over it); < half a sample
+    imu_time_jitter_us: int = 0
     gps_rate_hz: float = 5.0
     mag_rate_hz: float = 50.0  # 0 disables the magnetometer
     # home (tangent point of the NED frame); height is ellipsoidal (WGS84)
@@ -134,13 +137,14 @@ class SimParams:
 
     def ideal(self) -> SimParams:
         """A copy with every sensor error off (noise, biases, scale factors, quantization, saturation,
-        vibration, hard/soft iron, latency jitter). Latency and rates are kept."""
+        vibration, hard/soft iron, latency and IMU time jitter). Latency and rates are kept."""
         kw = {name: 0.0 for name in self.ERROR_FIELDS}
         kw.update(
             gyro_bias_rps=(0.0, 0.0, 0.0), accel_bias_mps2=(0.0, 0.0, 0.0),
             gyro_scale_ppm=(0.0, 0.0, 0.0), accel_scale_ppm=(0.0, 0.0, 0.0),
             gyro_range_rps=math.inf, accel_range_mps2=math.inf,
             mag_hard_iron_ut=(0.0, 0.0, 0.0), mag_soft_iron=None, gps_latency_jitter_us=0,
+            imu_time_jitter_us=0,
         )  # fmt: skip
         return replace(self, **kw)
 
