@@ -103,3 +103,27 @@ def test_two_hz_velocity_spike_does_not_start_a_position_hold(bench) -> None:
     print(flags[spike], flags[after].sum())
     assert flags[spike]
     assert not flags[after].any()
+
+
+def test_a_receiver_without_latency_meets_the_goals(bench) -> None:
+    """ALGORITHMS.md 8, GPS step 3, the increments past the newest history entry: the fixed-wing of seed
+    1 with the fixes' latency 0 and the IMU times off by up to 0.6 ms (``--sim gps_latency_us=0 --sim
+    imu_time_jitter_us=600``, a receiver that stamps its fixes at receipt, as the real car drive's).
+    With the newest entry held for one spacing about a tenth of the fixes had no increments, so no
+    IMU-aided test and no step test: fuzzy rows detected 80.2 % of the faulty fixes, raised 90 false
+    alarms, and roll/pitch RMS was 1.44 times the outlier-free run's (measured before session 33).
+    Held for two spacings, the issue's goals: detection 100 %, no false alarm, 1.07x."""
+    sim = {"gps_latency_us": 0, "imu_time_jitter_us": 600}
+    res = bench.scenario("fixedwing_turns", seed=1, duration_s=900.0, **sim)
+    rec = res.recording
+    faults = bench.plan_faults(rec.gnss["t_us"] * 1e-6, 900.0, np.random.default_rng(1 + 1000))
+    cfg = bench.nav_cfg("fixedwing", "fuzzy-rows", False, res)
+    clean = bench.replay(rec, res, cfg)
+    run = bench.replay(bench.inject(rec, faults), res, cfg)
+    rule = bench.profile_rule(bench.MODES[-1][1], "fuzzy-rows")
+    sc = bench.score(bench.mode_flags(rule, run), faults, run.valid)
+    ratio = bench.rms(run.rp_err[run.window]) / bench.rms(clean.rp_err[clean.window])
+    print(sc.detected, sc.missed, sc.false_alarms, ratio)
+    assert sc.detected >= 0.98 * (sc.detected + sc.missed)
+    assert sc.false_alarms <= 10
+    assert ratio <= 1.2
