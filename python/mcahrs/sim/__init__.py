@@ -16,9 +16,11 @@ own arguments (see its builder in :mod:`mcahrs.sim.scenarios`), ``duration_s`` (
 Modules: :mod:`~mcahrs.sim.profiles` (smooth profiles with exact derivatives),
 :mod:`~mcahrs.sim.truth` (motions, vehicle attitude rules, truth arrays),
 :mod:`~mcahrs.sim.sensors` (IMU / GNSS / magnetometer models, gravity, geodesy),
-:mod:`~mcahrs.sim.scenarios` (named scenarios and the driver).
+:mod:`~mcahrs.sim.scenarios` (named scenarios and the driver), :mod:`~mcahrs.sim.faults` (GNSS
+faults at fixed times).
 """
 
+from mcahrs.sim.faults import with_gnss_faults
 from mcahrs.sim.profiles import Channel
 from mcahrs.sim.scenarios import SCENARIOS, Plan, SimResult, scenario, simulate
 from mcahrs.sim.sensors import (
@@ -47,4 +49,5 @@ __all__ = [
     "quat_to_euler",
     "scenario",
     "simulate",
+    "with_gnss_faults",
 ]
