@@ -41,9 +41,19 @@ GOAL_FLASH = 24 * 1024
 GOAL_STATE = 4 * 1024
 GOAL_STACK = 1024
 GOAL_INSTR = {"nav_imu": 2500, "nav_gps": 12000}
-# Vector files that run a robust profile (gen_vectors.py): their calls are reported on their own,
-# beside the goals, which are the base filter's (plain mode: three CS axes + gravity update).
-ROBUST_VECTORS = ("nav_outliers", "nav_outliers_rx")
+# Vector files that run a robust profile (gen_vectors.py), by profile: their calls are reported on
+# their own, beside the goals, which are the base filter's (plain mode: three CS axes + gravity update).
+ROWS_PROFILE = "the fuzzy-rows profile"
+ROBUST_VECTORS = {
+    ROWS_PROFILE: (
+        "nav_outliers",
+        "nav_outliers_rx",
+        "nav_rows_taken_2hz",
+        "nav_rows_release_2hz",
+        "nav_rows_jitter",
+    ),
+    "the whole-update modes (FTA, AKF, fuzzy reject and inflate, IGG-III)": ("nav_modes",),
+}
 KIB = 1024.0
 
 
@@ -597,11 +607,13 @@ def main(argv: list[str] | None = None) -> int:
         f"call and its argument set-up), over {len(runs)} vector files"
     )
     per_ep: dict[str, list[np.ndarray]] = defaultdict(list)
-    robust_ep: dict[str, list[np.ndarray]] = defaultdict(list)
+    profile_of = {v: label for label, names in ROBUST_VECTORS.items() for v in names}
+    robust_ep: dict[str, dict[str, list[np.ndarray]]] = defaultdict(lambda: defaultdict(list))
     for name, (costs, _, _) in runs.items():
         for ep in np.unique(costs.calls["id"]):
             calls = costs.calls["a"][costs.calls["id"] == ep]
-            (robust_ep if name in ROBUST_VECTORS else per_ep)[gv.EP_NAME.get(int(ep), str(ep))].append(calls)
+            group = robust_ep[profile_of[name]] if name in profile_of else per_ep
+            group[gv.EP_NAME.get(int(ep), str(ep))].append(calls)
     stats = {}
     samples: dict[str, np.ndarray] = {}
     print(f"  {'entry point':16s} {'calls':>6s} {'mean':>8s} {'p99':>8s} {'max':>8s} {'min':>7s}  goal")
@@ -616,13 +628,14 @@ def main(argv: list[str] | None = None) -> int:
             f"{a.min():7.0f}  {gtxt}"
         )
     robust_stats = {}
-    if robust_ep:
-        names = ", ".join(ROBUST_VECTORS)
-        print(f"  the fuzzy-rows profile ({names}; the goals above are the base filter's):")
+    for label, eps in robust_ep.items():
+        names = ", ".join(ROBUST_VECTORS[label])
+        print(f"  {label} ({names}; the goals above are the base filter's):")
         for ep in ("nav_imu", "nav_gps"):
-            if ep in robust_ep:
-                a = np.concatenate(robust_ep[ep]).astype(np.float64)
-                robust_stats[ep] = (a.mean(), a.max())
+            if ep in eps:
+                a = np.concatenate(eps[ep]).astype(np.float64)
+                if label == ROWS_PROFILE:
+                    robust_stats[ep] = (a.mean(), a.max())
                 print(
                     f"  mca_{ep:12s} {a.size:6d} {a.mean():8.0f} {np.percentile(a, 99):8.0f} {a.max():8.0f} "
                     f"{a.min():7.0f}"

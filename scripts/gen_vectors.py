@@ -15,7 +15,9 @@ ground vehicle through steady driving, hard acceleration and braking, turns; ran
 invalid inputs); ``nav_steady``, ``nav_accel_brake``, ``nav_turns``, ``nav_random`` drive the
 navigation top level (400 Hz IMU, 10 Hz GPS with latency, 50 Hz outputs; the random one
 with magnetometer, faults and a 32-bit time wrap; ``nav_outliers`` with GNSS faults and the
-fuzzy-rows profile, ``nav_outliers_rx`` the same with the receiver model); ``ins_fixedwing_turns`` drives the
+fuzzy-rows profile, ``nav_outliers_rx`` the same with the receiver model; ``nav_modes`` the same
+flight under each whole-update robust mode; ``nav_rows_*`` the simulator's car through the rules of
+fuzzy rows that need longer runs or other receiver timings, ROWS_VECTORS); ``ins_fixedwing_turns`` drives the
 loosely-coupled INS (mca_ins.h) through 18 s of a simulated fixed-wing flight (``mcahrs.sim``).
 
 This module is also the Python side of the format (op codes read from
@@ -75,6 +77,7 @@ OUT_LAYOUT: dict[int, list[tuple[str, str, int]]] = {
     OP["CS3_PREDICT"]: _CS_STATE,
     OP["CS3_UPDATE"]: _CS_STATE + [("t_stat", "<f4", 3)],
     OP["NAV_INIT_PRESET"]: _STATUS,
+    OP["NAV_INIT_CONFIG"]: _STATUS,
     OP["NAV_IMU"]: _STATUS,
     OP["NAV_GPS"]: _STATUS,
     OP["NAV_MAG"]: _STATUS,
@@ -134,7 +137,9 @@ class VecWriter:
         self.records: list[bytes] = []
 
     def op(self, name: str, fmt: str = "<", *values) -> None:
-        payload = struct.pack(fmt, *values)
+        self.raw(name, struct.pack(fmt, *values))
+
+    def raw(self, name: str, payload: bytes) -> None:
         assert len(payload) % 4 == 0, name
         self.records.append(REC.pack(OP[name], len(payload)) + payload)
 
@@ -697,7 +702,7 @@ def nav_events(
     gyro_bias = np.array([0.004, -0.003, 0.002])
     gyro = tr.gyro + gyro_bias + rng.normal(0, 0.003, (n, 3))
     accel = tr.f_b + np.array([0.05, -0.04, 0.03]) + rng.normal(0, 0.06, (n, 3))
-    step = int(round(GPS_DT / IMU_DT))
+    step = int(round(GPS_DT / (tr.t[1] - tr.t[0])))  # IMU_DT but for nav_modes' 100 Hz
     lat, lon, alt = ned_to_geodetic(tr.pos + rng.normal(0, 1, (n, 3)) * [0.8, 0.8, 1.5] + pos_fault)
     gps = []
     for k in range(step, n, step):
@@ -792,17 +797,11 @@ def scenario_nav_turns() -> VecWriter:
     return w
 
 
-def scenario_nav_outliers(receiver_model: bool = False) -> VecWriter:
-    """Fixed-wing turns under GNSS faults with the fuzzy-rows profile on the CS axes (the N/E pair,
-    coasting; docs/ALGORITHMS.md 5) and fuzzy-reject on the attitude filter: a 20 m position burst
-    at an azimuth of 20 degrees (N 18.8 m, E 6.8 m), a 2 m/s velocity burst, a burst of both, a
-    single velocity spike, a 1.5 m/s north velocity burst whose first fix the three-threshold
-    rule does not alarm on (T < TD3) and fuzzy rows' gate leaves out, and a 0.6 m/s burst at 45
-    degrees that the velocity step test holds only with its variance scaled to what it measured
-    (lambda, docs/ALGORITHMS.md 8, GPS step 3: the outputs differ from the C without it)."""
-    rng = np.random.default_rng(7007)
+def outlier_flight(imu_dt: float = IMU_DT) -> tuple[Truth, np.ndarray, np.ndarray]:
+    """The fixed-wing turns of nav_outliers and its GNSS faults: (truth, position offsets (n, 3),
+    velocity offsets (n, 3)), at ``imu_dt``."""
     tr = make_truth(
-        IMU_DT,
+        imu_dt,
         9.0,
         speed_acc=[(1.2, 0.5, 6.0), (3.5, 0.5, -6.0)],
         yaw_rate=[(4.2, 0.6, 0.3), (6.0, 0.6, -0.6), (7.8, 0.6, 0.3)],
@@ -824,6 +823,19 @@ def scenario_nav_outliers(receiver_model: bool = False) -> VecWriter:
     burst(7.0, 7.6, 15.0, 1.5, 120.0)
     burst(8.0, 8.05, 0.0, 3.0, 300.0)
     burst(8.3, 8.8, 0.0, 1.5, 0.0)
+    return tr, pos_f, vel_f
+
+
+def scenario_nav_outliers(receiver_model: bool = False) -> VecWriter:
+    """Fixed-wing turns under GNSS faults with the fuzzy-rows profile on the CS axes (the N/E pair,
+    coasting; docs/ALGORITHMS.md 5) and fuzzy-reject on the attitude filter: a 20 m position burst
+    at an azimuth of 20 degrees (N 18.8 m, E 6.8 m), a 2 m/s velocity burst, a burst of both, a
+    single velocity spike, a 1.5 m/s north velocity burst whose first fix the three-threshold
+    rule does not alarm on (T < TD3) and fuzzy rows' gate leaves out, and a 0.6 m/s burst at 45
+    degrees that the velocity step test holds only with its variance scaled to what it measured
+    (lambda, docs/ALGORITHMS.md 8, GPS step 3: the outputs differ from the C without it)."""
+    rng = np.random.default_rng(7007)
+    tr, pos_f, vel_f = outlier_flight()
     w = VecWriter()
     op_nav_init(w, 1, rob_cs=ROB_FUZZY_ROWS_RX if receiver_model else ROB_FUZZY_ROWS, rob_att=3)
     nav_ops(w, nav_events(tr, rng, t0_us=30_000_000, latency_s=0.12, faults=(pos_f, vel_f)))
@@ -834,6 +846,37 @@ def scenario_nav_outliers_rx() -> VecWriter:
     """nav_outliers with the receiver model (docs/ALGORITHMS.md 8, GPS step 4): the white parts of
     the fix noise as the position rows' R, below the fixes' reported accuracies."""
     return scenario_nav_outliers(receiver_model=True)
+
+
+# The whole-update robust modes of nav_modes, by their robust_profile names (docs/ALGORITHMS.md 5)
+NAV_MODES = ("fta", "akf", "fuzzy", "fuzzy-inflate", "igg3")
+NAV_MODES_IMU_DT = 0.01  # 100 Hz: five flights in one file under MAX_FILE_BYTES
+
+
+def op_nav_init_config(w: VecWriter, cfg) -> None:
+    """NAV_INIT_CONFIG with a ``core.nav_config`` struct (its bytes: float and uint8_t fields)."""
+    from mcahrs.core import ffi
+
+    w.raw("NAV_INIT_CONFIG", bytes(ffi.buffer(cfg)))
+
+
+def scenario_nav_modes() -> VecWriter:
+    """nav_outliers' flight and faults (at 100 Hz) once under each whole-update robust mode of
+    NAV_MODES, on the CS axes and the attitude filter, each from its own NAV_INIT_CONFIG
+    (``core.robust_profile`` at 10 Hz with the receiver model of nav_outliers_rx): FTA's inflation,
+    AKF's R and Q scaling, the fuzzy detector rejecting and inflating whole updates, IGG-III's
+    weights, and GPS step 4's return at the end of a position fault the CS took in."""
+    from mcahrs import core
+
+    tr, pos_f, vel_f = outlier_flight(NAV_MODES_IMU_DT)
+    w = VecWriter()
+    for k, mode in enumerate(NAV_MODES):
+        over = core.robust_profile(mode, 1.0 / GPS_DT) | {"gps_pos_white_m": 0.8, "gps_alt_white_m": 1.5}
+        op_nav_init_config(w, core.nav_config("fixedwing", **over))
+        rng = np.random.default_rng(8008 + k)
+        ev = nav_events(tr, rng, t0_us=40_000_000 + 20_000_000 * k, latency_s=0.12, faults=(pos_f, vel_f))
+        nav_ops(w, ev)
+    return w
 
 
 def scenario_nav_random() -> VecWriter:
@@ -945,23 +988,30 @@ def scenario_ins_fixedwing_turns() -> VecWriter:
         gps_rate_hz=5.0,
         mag_rate_hz=INS_MAG_HZ,
     )
-    rec = res.recording
-    t0_us = 30_000_000  # the simulator starts at 0; an IMU clock rarely does
-    imu, gnss, mag = rec.imu, rec.gnss, rec.mag
     w = VecWriter()
     w.op("INS_INIT_PRESET", "<3I", 1, KEEP, KEEP)
+    # the simulator starts at 0; an IMU clock rarely does
+    recording_ops(w, res.recording, 30_000_000, "INS", INS_OUT_EVERY)
+    return w
+
+
+def recording_ops(w: VecWriter, rec, t0_us: int, family: str = "NAV", out_every: int = OUT_EVERY) -> None:
+    """A simulator recording's events as NAV_* or INS_* ops, ``t0_us`` added to its times, merged as
+    ``nav_ops`` merges them (and as mca_nav_replay / mca_ins_replay do), with an output after every
+    ``out_every``-th IMU step and after every fix."""
+    imu, gnss, mag = rec.imu, rec.gnss, rec.mag
     gi = mi = 0
     for k in range(len(imu)):
         t = int(imu["t_us"][k]) + t0_us
-        w.op("INS_IMU", "<Q6f", t, *imu["gyro_rps"][k], *imu["accel_mps2"][k])
-        if k % INS_OUT_EVERY == 0:
-            w.op("INS_OUTPUT")
+        w.op(f"{family}_IMU", "<Q6f", t, *imu["gyro_rps"][k], *imu["accel_mps2"][k])
+        if k % out_every == 0:
+            w.op(f"{family}_OUTPUT")
         t_next = int(imu["t_us"][k + 1]) + t0_us if k + 1 < len(imu) else 2**64 - 1
         while gi < len(gnss) and int(gnss["t_rx_us"][gi]) + t0_us < t_next:
             g = gnss[gi]
             flags = int(g["flags"]) & _GNSS_TO_MCA_FIX
             w.op(
-                "INS_GPS",
+                f"{family}_GPS",
                 "<Q3i6f2I",
                 int(g["t_us"]) + t0_us,
                 int(g["lat_e7"]),
@@ -974,11 +1024,84 @@ def scenario_ins_fixedwing_turns() -> VecWriter:
                 flags,
                 int(g["fix_type"]),
             )
-            w.op("INS_OUTPUT")
+            w.op(f"{family}_OUTPUT")
             gi += 1
         while mi < len(mag) and int(mag["t_us"][mi]) + t0_us < t_next:
-            w.op("INS_MAG", "<Q3f", int(mag["t_us"][mi]) + t0_us, *mag["mag_b"][mi])
+            w.op(f"{family}_MAG", "<Q3f", int(mag["t_us"][mi]) + t0_us, *mag["mag_b"][mi])
             mi += 1
+
+
+# ----------------------------------------------------------------------------- fuzzy rows' rules
+
+# Rules of fuzzy rows (docs/ALGORITHMS.md 8, GPS steps 3-4) that need longer runs, other fix rates or
+# other receiver timings than the 9 s flights above: each on the simulator's car (seed 1, 100 Hz IMU,
+# the ground preset with core.robust_profile("fuzzy-rows") at the fix rate and the simulator's receiver
+# model) under the faults of the golden-vs-C case of the same rule (tests/python/test_nav_golden_vs_c.py,
+# where the case runs the 400 Hz IMU and the rule is traced). Measured with a coverage build of the
+# host replay (scripts/vector_coverage.py) that each reaches its rule at 100 Hz too:
+# name: (golden case, simulator overrides, seconds, faults as sim.with_gnss_faults takes them)
+ROWS_VECTORS = {
+    # the taken flag (GPS step 4): the whole-update guard takes a held burst of both in at its last fix
+    "nav_rows_taken_2hz": (
+        "rows_car_guard_both_2hz_rx",
+        {"gps_rate_hz": 2.0},
+        52.0,
+        ((20.0, 40.0, 23.9, 1.4, 30.0),),
+    ),
+    # the release by the held fixes' positions (GPS step 3), from a burst that grows to 1.2 m/s
+    "nav_rows_release_2hz": (
+        "rows_car_missed_burst_2hz_rx",
+        {"gps_rate_hz": 2.0},
+        40.0,
+        (
+            (15.0, 15.5, 0.0, 0.2, 120.0),
+            (15.5, 16.0, 0.0, 0.4, 120.0),
+            (16.0, 16.5, 0.0, 0.6, 120.0),
+            (16.5, 17.0, 0.0, 0.8, 120.0),
+            (17.0, 17.5, 0.0, 1.0, 120.0),
+            (17.5, 25.0, 0.0, 1.2, 120.0),
+            (27.0, 31.0, 15.0, 0.0, 30.0),
+            (32.0, 36.0, 0.0, 1.2, 120.0),
+        ),
+    ),
+    # fixes without latency and IMU times jittered by 0.6 ms: the increments past the history's newest
+    # entry, held for up to two spacings (GPS step 3)
+    "nav_rows_jitter": (
+        "rows_car_imu_jitter_rx",
+        {"gps_latency_us": 0, "imu_time_jitter_us": 600},
+        55.0,
+        ((20.0, 26.0, 0.0, 1.5, 70.0), (32.0, 42.0, 20.0, 2.0, 120.0)),
+    ),
+}
+ROWS_IMU_RATE_HZ = 100.0  # 36 B an IMU record: 55 s in under MAX_FILE_BYTES
+
+
+def rows_recording(name: str):
+    """(recording with its faults, ``mca_nav_config_t``) of ROWS_VECTORS[name]: what
+    scenario_nav_rows writes, and what ``core.replay`` of the two gives bit for bit."""
+    from mcahrs import core, sim
+
+    _, sim_kw, duration_s, faults = ROWS_VECTORS[name]
+    res = sim.scenario(
+        "car_accel_brake", seed=1, duration_s=duration_s, imu_rate_hz=ROWS_IMU_RATE_HZ, **sim_kw
+    )
+    rec = sim.with_gnss_faults(res.recording, faults)
+    p = res.params
+    over = core.robust_profile("fuzzy-rows", core.fix_rate_hz(rec)) | core.receiver_model(
+        p.gps_pos_white_h_m, p.gps_pos_white_v_m, p.gps_pos_sigma_h_m, p.gps_pos_sigma_v_m, p.gps_pos_tau_s
+    )
+    return rec, core.nav_config("ground", **over)
+
+
+ROWS_T0_US = 50_000_000  # added to the simulator's times, which start at 0
+
+
+def scenario_nav_rows(name: str) -> VecWriter:
+    """The car of ROWS_VECTORS[name] under its faults, from a NAV_INIT_CONFIG of fuzzy rows."""
+    rec, cfg = rows_recording(name)
+    w = VecWriter()
+    op_nav_init_config(w, cfg)
+    recording_ops(w, rec, ROWS_T0_US)
     return w
 
 
@@ -991,6 +1114,8 @@ SCENARIOS = {
     "nav_random": scenario_nav_random,
     "nav_outliers": scenario_nav_outliers,
     "nav_outliers_rx": scenario_nav_outliers_rx,
+    "nav_modes": scenario_nav_modes,
+    **{name: (lambda name=name: scenario_nav_rows(name)) for name in ROWS_VECTORS},
     "ins_fixedwing_turns": scenario_ins_fixedwing_turns,
 }
 

@@ -374,6 +374,24 @@ static void op_nav_init_preset(in_t *in, out_t *out)
     out_i32(out, (int32_t)st);
 }
 
+/* NAV_INIT_CONFIG's payload is the struct itself: a size the record format can carry (C99 has no
+ * _Static_assert; an array of negative size stops the build instead). */
+typedef char rpl_nav_config_fits[(sizeof(mca_nav_config_t) % 4u == 0u && sizeof(mca_nav_config_t) <= RPL_PAYLOAD_MAX)
+                                     ? 1
+                                     : -1];
+
+/* in: the bytes of an mca_nav_config_t. out: i32 status (mca_nav_init checks the configuration:
+ * a bad one leaves the filter as it was and returns MCA_ERR_BAD_CONFIG). */
+static void op_nav_init_config(in_t *in, out_t *out)
+{
+    mca_nav_config_t cfg;
+    memcpy(&cfg, in->p + in->off, sizeof(cfg));
+    in->off += sizeof(cfg);
+    mca_status_t st;
+    MEASURE(RPL_EP_NAV_INIT, st = mca_nav_init(&g_nav, &cfg));
+    out_i32(out, (int32_t)st);
+}
+
 /* in: u64 t_us, f32 gyro_b_rps[3], f32 accel_b_mps2[3]. out: i32 status. */
 static void op_nav_imu(in_t *in, out_t *out)
 {
@@ -597,6 +615,7 @@ static const op_entry_t k_ops[] = {
     {RPL_OP_NAV_GPS, 13u * 4u, "nav_gps", op_nav_gps},
     {RPL_OP_NAV_MAG, 5u * 4u, "nav_mag", op_nav_mag},
     {RPL_OP_NAV_OUTPUT, 0u, "nav_output", op_nav_output},
+    {RPL_OP_NAV_INIT_CONFIG, (uint16_t)sizeof(mca_nav_config_t), "nav_init_config", op_nav_init_config},
     {RPL_OP_INS_INIT_PRESET, 3u * 4u, "ins_init_preset", op_ins_init_preset},
     {RPL_OP_INS_IMU, 8u * 4u, "ins_imu", op_ins_imu},
     {RPL_OP_INS_GPS, 13u * 4u, "ins_gps", op_ins_gps},

@@ -55,6 +55,11 @@
  *     vel_ned_mps[3], acc_ned_mps2[3], att_var[6], cs_var[9], rp_t, gps_t[3],
  *     u32 flags, u32 n_grav_obs, u32 n_grav_skip */
 #define RPL_OP_NAV_OUTPUT 0x0205u
+/* in: an mca_nav_config_t as its bytes (the struct holds float and uint8_t fields only, so its
+ *     layout is the same on the host and the M4F; the record's length must be its sizeof, which
+ *     replay_main.c checks at compile time is a multiple of 4 within RPL_PAYLOAD_MAX): any
+ *     configuration, a robust profile at any fix rate, a receiver model. out: i32 status. */
+#define RPL_OP_NAV_INIT_CONFIG 0x0206u
 
 /* Loosely-coupled INS (mca_ins.h), the reference filter. Output: i32 status (INS_OUTPUT: i32 0,
  * then the output). */

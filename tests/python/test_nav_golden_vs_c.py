@@ -62,7 +62,7 @@ class Case:
     nan_velocity: bool = False  # one fix with a NaN east velocity flagged present
     profile: str | None = None  # robust profile on both sides (core.robust_profile)
     receiver_model: bool = False  # the simulator's receiver model (core.receiver_model)
-    gnss_faults: tuple[tuple[float, ...], ...] = ()  # GNSS faults (_with_gnss_faults)
+    gnss_faults: tuple[tuple[float, ...], ...] = ()  # GNSS faults (sim.with_gnss_faults)
     cs_only: bool = False  # the profile on the CS axes only (the attitude filter plain)
     tol: dict[str, float] = field(default_factory=dict)  # TOL entries of this case (see TOL_COAST, TOL_IGG)
     tilt_blips: tuple[float, ...] = ()  # start times of 0.8 s specific-force tilts (_with_tilt_blips)
@@ -941,30 +941,6 @@ CASES: dict[str, Case] = {
 }
 
 
-def _with_gnss_faults(rec: Recording, faults: tuple[tuple[float, ...], ...]) -> Recording:
-    """A copy with position and velocity offsets added to the fixes valid in each fault window (the
-    position moved on a sphere: both sides read the same integers, exactness does not matter)."""
-    gn = rec.gnss.copy()
-    t = gn["t_us"].astype(np.int64) * 1e-6
-    for t0, t1, p_m, v_mps, az_deg, *down in faults:
-        sel = (t >= t0) & (t < t1)
-        if down:  # (position, velocity) offsets along NED down
-            gn["alt_mm"][sel] -= np.round(down[0] * 1e3).astype(gn["alt_mm"].dtype)
-            gn["vel_ned_mps"][sel, 2] += down[1]
-        u = np.array([math.cos(math.radians(az_deg)), math.sin(math.radians(az_deg))])
-        lat = gn["lat_e7"][sel] * 1e-7
-        dlat = np.degrees(p_m * u[0] / 6378137.0)
-        dlon = np.degrees(p_m * u[1] / (6378137.0 * np.cos(np.radians(lat))))
-        gn["lat_e7"][sel] = np.round((lat + dlat) * 1e7).astype(gn["lat_e7"].dtype)
-        gn["lon_e7"][sel] = np.round((gn["lon_e7"][sel] * 1e-7 + dlon) * 1e7).astype(gn["lon_e7"].dtype)
-        gn["vel_ned_mps"][sel, 0] += v_mps * u[0]
-        gn["vel_ned_mps"][sel, 1] += v_mps * u[1]
-    v = gn["vel_ned_mps"]
-    gn["speed_mps"] = np.hypot(v[:, 0], v[:, 1])
-    gn["course_rad"] = np.mod(np.arctan2(v[:, 1], v[:, 0]), 2.0 * np.pi)
-    return Recording(rec.name + "+gnss_faults", rec.imu, gn, rec.mag, rec.ref, rec.meta)
-
-
 def _with_tilt_blips(rec: Recording, starts: tuple[float, ...]) -> Recording:
     """A copy whose specific force is turned by 0.5 rad about body x for 0.8 s from each start: a
     gravity observation 0.5 rad off in roll with |f| unchanged (no extra R from |g_b| - g), which
@@ -1140,7 +1116,7 @@ def _runs(name: str) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         if case.nan_velocity:
             rec = _with_nan_velocity(rec)
         if case.gnss_faults:
-            rec = _with_gnss_faults(rec, case.gnss_faults)
+            rec = sim.with_gnss_faults(rec, case.gnss_faults)
         if case.tilt_blips:
             rec = _with_tilt_blips(rec, case.tilt_blips)
         if case.s_acc_mps is not None or case.vel_offsets:
@@ -1643,3 +1619,21 @@ def test_c_matches_golden_through_a_numerically_failed_cs_update(axis: int) -> N
     # a instead measures 8.8e-5 / 7.6e-5 rad of attitude (axis 0 / 2) and 1.8e-2 / 1.1e-2 on rp_T here
     # (9.7e-6 / 9.9e-6 and 3e-5 as it is).
     assert gaps["attitude_rad"] < 4e-5
+
+
+def test_firmware_vectors_of_the_fuzzy_rows_rules_take_their_golden_cases_faults() -> None:
+    """scripts/gen_vectors.py's nav_rows_* vectors carry the rules of GPS steps 3-4 that the golden cases
+    below trace to the M4F (tests/python/test_vectors.py): the same scenario, seed, simulator overrides
+    and faults as their case (the vectors run the IMU at 100 Hz to fit the file size)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
+    import gen_vectors as gv
+
+    for name, (case_name, sim_kw, duration_s, faults) in gv.ROWS_VECTORS.items():
+        case = CASES[case_name]
+        expected = ("car_accel_brake", "ground", "fuzzy-rows", 1)
+        assert (case.scenario, case.preset, case.profile, case.seed) == expected, name
+        assert case.receiver_model and not case.overrides, name
+        assert (sim_kw, duration_s, faults) == (case.sim_kw, case.duration_s, case.gnss_faults), name
