@@ -29,7 +29,9 @@ a case where the C differs from the spec is an ``xfail(strict=True)`` with the d
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -42,6 +44,9 @@ from mcahrs.golden import geo as ggeo
 from mcahrs.golden import nav as gnav
 from mcahrs.golden import robust as grobust
 from mcahrs.samples import GNSS_HAS_ALT, GNSS_HAS_VEL_D, GNSS_HAS_VEL_NE, Recording
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
+import gen_vectors as gv  # noqa: E402  (the firmware vectors of three cases' faults: ROWS_VECTORS)
 
 # --------------------------------------------------------------------------------------
 # Cases
@@ -286,16 +291,8 @@ FIXEDWING_FIRST_HELD_BURST = ((20.0, 38.0, 0.0, 1.1, 120.0),)
 # 6, 4). With the sums made before the test (this fix's interval in them, withdrawn) the release comes one fix
 # earlier, 28.5 s, and the outputs stay within the tolerances: rows_fixedwing_first_held_rx separates that
 # reading.
-CAR_MISSED_BURST_2HZ = (
-    (15.0, 15.5, 0.0, 0.2, 120.0),
-    (15.5, 16.0, 0.0, 0.4, 120.0),
-    (16.0, 16.5, 0.0, 0.6, 120.0),
-    (16.5, 17.0, 0.0, 0.8, 120.0),
-    (17.0, 17.5, 0.0, 1.0, 120.0),
-    (17.5, 25.0, 0.0, 1.2, 120.0),
-    (27.0, 31.0, 15.0, 0.0, 30.0),
-    (32.0, 36.0, 0.0, 1.2, 120.0),
-)
+# (the faults are also the firmware vector nav_rows_release_2hz's, scripts/gen_vectors.py ROWS_VECTORS)
+CAR_MISSED_BURST_2HZ = gv.ROWS_VECTORS["nav_rows_release_2hz"][3]
 # The end of a position fault the CS took in (GPS step 4): a 100 s, 30 m horizontal position fault (N 18,
 # E -24 m, velocity clean; bench_outliers.py's long fault) over 20-120 s of the car's cruise, braking,
 # stop and pull-away, with the receiver model. FTA and IGG-III take it in within a few fixes (the GPS-error
@@ -496,7 +493,8 @@ CAR_SPIKE_BEFORE_2HZ = ((21.5, 22.0, 0.0, 4.0, 90.0),)
 # *taken* set: the CS restarts. With the step back only ending the hold (the C before; at azimuths 0, 79 and
 # 200 deg the step test's return restarts it there anyway) the clean fixes stood the held step from a CS
 # inside the burst and a new hold started on them: alarmed from 40.0 s to the end, no restart.
-CAR_GUARD_BOTH_2HZ = ((20.0, 40.0, 23.9, 1.4, 30.0),)
+# (the firmware vector nav_rows_taken_2hz's too)
+CAR_GUARD_BOTH_2HZ = gv.ROWS_VECTORS["nav_rows_taken_2hz"][3]
 # Fixes without latency and an IMU whose times jitter (GPS step 3's increments past the newest history entry,
 # session 33): the simulator's car at 400 Hz, its IMU times off by up to 0.6 ms (imu_time_jitter_us) and
 # the fixes' latency 0, as on the real car drive. An entry is pushed once its samples reach the 20 ms spacing,
@@ -505,8 +503,8 @@ CAR_GUARD_BOTH_2HZ = ((20.0, 40.0, 23.9, 1.4, 30.0),)
 # Held for one (the C before), those fixes had none, so no IMU-aided test and no step test; the burst of both
 # (32-42 s) has four (35.2, 36.4, 38.0 and 41.4 s), and the C before let its 35.2 s fix in, alarmed on 42.2
 # and 42.4 s after it, and ran 22 m from the C of now. Held for two: alarmed on the bursts' fixes, nowhere
-# after.
-CAR_JITTER_FAULTS = ((20.0, 26.0, 0.0, 1.5, 70.0), (32.0, 42.0, 20.0, 2.0, 120.0))
+# after. (The firmware vector nav_rows_jitter's too.)
+CAR_JITTER_FAULTS = gv.ROWS_VECTORS["nav_rows_jitter"][3]
 
 CASES: dict[str, Case] = {
     # Ground vehicle, yaw from course over ground, each compensation mode.
@@ -1621,16 +1619,11 @@ def test_c_matches_golden_through_a_numerically_failed_cs_update(axis: int) -> N
     assert gaps["attitude_rad"] < 4e-5
 
 
-def test_firmware_vectors_of_the_fuzzy_rows_rules_take_their_golden_cases_faults() -> None:
+def test_firmware_vectors_of_the_fuzzy_rows_rules_are_their_golden_cases() -> None:
     """scripts/gen_vectors.py's nav_rows_* vectors carry the rules of GPS steps 3-4 that the golden cases
-    below trace to the M4F (tests/python/test_vectors.py): the same scenario, seed, simulator overrides
-    and faults as their case (the vectors run the IMU at 100 Hz to fit the file size)."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
-    import gen_vectors as gv
-
+    below trace to the M4F (tests/python/test_vectors.py): the same scenario, preset, profile, seed,
+    simulator overrides and length as their case (the faults are shared; the vectors run the IMU at
+    100 Hz to fit the file size)."""
     for name, (case_name, sim_kw, duration_s, faults) in gv.ROWS_VECTORS.items():
         case = CASES[case_name]
         expected = ("car_accel_brake", "ground", "fuzzy-rows", 1)
