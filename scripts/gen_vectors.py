@@ -99,6 +99,7 @@ OUT_LAYOUT: dict[int, list[tuple[str, str, int]]] = {
         ("n_grav_skip", "<u4", 1),
     ],
     OP["INS_INIT_PRESET"]: _STATUS,
+    OP["INS_INIT_CONFIG"]: _STATUS,
     OP["INS_IMU"]: _STATUS,
     OP["INS_GPS"]: _STATUS,
     OP["INS_MAG"]: _STATUS,
@@ -853,11 +854,12 @@ NAV_MODES = ("fta", "akf", "fuzzy", "fuzzy-inflate", "igg3")
 NAV_MODES_IMU_DT = 0.01  # 100 Hz: five flights in one file under MAX_FILE_BYTES
 
 
-def op_nav_init_config(w: VecWriter, cfg) -> None:
-    """NAV_INIT_CONFIG with a ``core.nav_config`` struct (its bytes: float and uint8_t fields)."""
+def op_nav_init_config(w: VecWriter, cfg, op: str = "NAV_INIT_CONFIG") -> None:
+    """NAV_INIT_CONFIG with a ``core.nav_config`` struct (its bytes: float and uint8_t fields), or
+    INS_INIT_CONFIG with a ``core.ins_config`` one."""
     from mcahrs.core import ffi
 
-    w.raw("NAV_INIT_CONFIG", bytes(ffi.buffer(cfg)))
+    w.raw(op, bytes(ffi.buffer(cfg)))
 
 
 def scenario_nav_modes() -> VecWriter:
@@ -1105,6 +1107,53 @@ def scenario_nav_rows(name: str) -> VecWriter:
     return w
 
 
+# The INS's GNSS outlier handling (ALGORITHMS.md 10, GNSS update step 5) under its fuzzy detector
+# (bench_outliers.py's "INS (fuzzy)"), on the simulator's fixed-wing (seed 7007, 100 Hz IMU, 5 Hz GNSS,
+# 10 Hz magnetometer, earth rate, the receiver model): a 20 m position jump, a 3 m/s velocity burst and a
+# burst of both (15 m, 1.5 m/s) held out block by block, then a 300 m, 10 m/s fault of both, a receiver on
+# a wrong solution, that no fix passes for 30 s, so the lock-up guard (gnss_reset_s) resets both blocks
+# to the fixes at 54.1 s. ins_fixedwing_turns has no fault.
+INS_OUTLIER_FAULTS = (
+    (8.0, 8.1, 20.0, 0.0, 30.0),
+    (11.0, 15.0, 0.0, 3.0, 200.0),
+    (17.0, 21.0, 15.0, 1.5, 120.0),
+    (24.0, 58.0, 300.0, 10.0, 300.0),
+)
+
+
+def ins_outliers_recording():
+    """(recording with INS_OUTLIER_FAULTS, ``mca_ins_config_t``) of the ins_outliers vector."""
+    from mcahrs import core, sim
+
+    res = sim.scenario(
+        "fixedwing_turns",
+        seed=7007,
+        duration_s=62.0,
+        imu_rate_hz=100.0,
+        gps_rate_hz=5.0,
+        mag_rate_hz=INS_MAG_HZ,
+        earth_rate=True,
+    )
+    p = res.params
+    cfg = core.ins_config(
+        "fixedwing",
+        robust="fuzzy",
+        gps_pos_tau_s=p.gps_pos_tau_s,
+        gps_pos_white_m=p.gps_pos_white_h_m,
+        gps_alt_white_m=p.gps_pos_white_v_m,
+    )
+    return sim.with_gnss_faults(res.recording, INS_OUTLIER_FAULTS), cfg
+
+
+def scenario_ins_outliers() -> VecWriter:
+    """The INS of ins_outliers_recording from an INS_INIT_CONFIG."""
+    rec, cfg = ins_outliers_recording()
+    w = VecWriter()
+    op_nav_init_config(w, cfg, "INS_INIT_CONFIG")
+    recording_ops(w, rec, ROWS_T0_US, "INS", INS_OUT_EVERY)
+    return w
+
+
 SCENARIOS = {
     "cs_maneuvers": scenario_cs_maneuvers,
     "cs_random": scenario_cs_random,
@@ -1117,6 +1166,7 @@ SCENARIOS = {
     "nav_modes": scenario_nav_modes,
     **{name: (lambda name=name: scenario_nav_rows(name)) for name in ROWS_VECTORS},
     "ins_fixedwing_turns": scenario_ins_fixedwing_turns,
+    "ins_outliers": scenario_ins_outliers,
 }
 
 

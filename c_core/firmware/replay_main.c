@@ -374,11 +374,11 @@ static void op_nav_init_preset(in_t *in, out_t *out)
     out_i32(out, (int32_t)st);
 }
 
-/* NAV_INIT_CONFIG's payload is the struct itself: a size the record format can carry (C99 has no
- * _Static_assert; an array of negative size stops the build instead). */
-typedef char rpl_nav_config_fits[(sizeof(mca_nav_config_t) % 4u == 0u && sizeof(mca_nav_config_t) <= RPL_PAYLOAD_MAX)
-                                     ? 1
-                                     : -1];
+/* NAV_INIT_CONFIG's and INS_INIT_CONFIG's payloads are the structs themselves: sizes the record
+ * format can carry (C99 has no _Static_assert; an array of negative size stops the build instead). */
+#define RPL_FITS(t) ((sizeof(t) % 4u == 0u && sizeof(t) <= RPL_PAYLOAD_MAX) ? 1 : -1)
+typedef char rpl_nav_config_fits[RPL_FITS(mca_nav_config_t)];
+typedef char rpl_ins_config_fits[RPL_FITS(mca_ins_config_t)];
 
 /* in: the bytes of an mca_nav_config_t. out: i32 status (mca_nav_init checks the configuration:
  * a bad one leaves the filter as it was and returns MCA_ERR_BAD_CONFIG). */
@@ -513,6 +513,18 @@ static void op_ins_init_preset(in_t *in, out_t *out)
     out_i32(out, (int32_t)st);
 }
 
+/* in: the bytes of an mca_ins_config_t. out: i32 status (a bad configuration leaves the INS as it
+ * was and returns MCA_ERR_BAD_CONFIG). */
+static void op_ins_init_config(in_t *in, out_t *out)
+{
+    mca_ins_config_t cfg;
+    memcpy(&cfg, in->p + in->off, sizeof(cfg));
+    in->off += sizeof(cfg);
+    mca_status_t st;
+    MEASURE(RPL_EP_INS_INIT, st = mca_ins_init(&g_ins, &cfg));
+    out_i32(out, (int32_t)st);
+}
+
 /* in: u64 t_us, f32 gyro_b_rps[3], f32 accel_b_mps2[3]. out: i32 status. */
 static void op_ins_imu(in_t *in, out_t *out)
 {
@@ -621,6 +633,7 @@ static const op_entry_t k_ops[] = {
     {RPL_OP_INS_GPS, 13u * 4u, "ins_gps", op_ins_gps},
     {RPL_OP_INS_MAG, 5u * 4u, "ins_mag", op_ins_mag},
     {RPL_OP_INS_OUTPUT, 0u, "ins_output", op_ins_output},
+    {RPL_OP_INS_INIT_CONFIG, (uint16_t)sizeof(mca_ins_config_t), "ins_init_config", op_ins_init_config},
     {RPL_OP_CAL_SPIN, 1u * 4u, "cal_spin", op_cal_spin},
 };
 

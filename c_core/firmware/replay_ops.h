@@ -76,6 +76,9 @@
  *     i32 lat_e7, lon_e7, alt_mm, f32 gyro_bias_rps[3], accel_bias_mps2[3], p_diag[15], gps_t,
  *     u32 gps_m, flags, n_gps_upd, n_gps_rej, n_gps_skip */
 #define RPL_OP_INS_OUTPUT 0x0305u
+/* in: an mca_ins_config_t as its bytes (float and uint8_t fields: the same layout on host and
+ *     M4F; the record's length must be its sizeof). out: i32 status. */
+#define RPL_OP_INS_INIT_CONFIG 0x0306u
 
 /* Measurement self-test (no core call; output: i32 status 0). in: u32 n.
  * Runs a known loop of exactly 2n + 1 instructions (fw_spin) and records its measured cost. */

@@ -6,7 +6,8 @@ the vectors are what the target build is checked on. Measured here with a gcov b
 replay (``scripts/vector_coverage.py``): every robust mode's own code runs (``nav_modes``), and so do
 the rules of fuzzy rows that the 9 s flights never reach (``nav_rows_*``: the taken flag, the release
 by the held fixes' positions, the IMU increments past the history's newest entry on fixes without
-latency; docs/ALGORITHMS.md 8, GPS steps 3-4). Host only: needs cmake and gcov (CI has both).
+latency; docs/ALGORITHMS.md 8, GPS steps 3-4), and the INS's GNSS outlier handling (``ins_outliers``).
+Host only: needs cmake and gcov (CI has both).
 """
 
 from __future__ import annotations
@@ -63,22 +64,39 @@ def test_vectors_reach_the_fuzzy_rows_rules(cov: dict[str, vc.FileCoverage]) -> 
     assert nav.lines[newest] > 0, "no vector has a fix after the history's newest entry"
 
 
-@pytest.mark.parametrize("name", list(gv.ROWS_VECTORS))
+def test_vectors_run_the_ins_outlier_handling(cov: dict[str, vc.FileCoverage]) -> None:
+    """The INS's GNSS blocks held out, tested on their own and reset by the lock-up guard
+    (ALGORITHMS.md 10, GNSS update step 5; ins_outliers): ins_fixedwing_turns has no fault."""
+    ins = cov["mca_ins.c"].functions
+    for fn in ("gnss_hold_out", "gnss_block_t", "gnss_reset_block"):
+        assert ins[fn] > 0, f"no vector runs {fn} (mca_ins.c)"
+
+
+# vector -> (its recording and configuration, the Python replay of the two, the op family)
+RECORDING_VECTORS = {
+    **{name: ((lambda name=name: gv.rows_recording(name)), core.replay, "NAV") for name in gv.ROWS_VECTORS},
+    "ins_outliers": (gv.ins_outliers_recording, core.ins_replay, "INS"),
+}
+
+
+@pytest.mark.parametrize("name", list(RECORDING_VECTORS))
 def test_recording_vectors_replay_as_core_replay(name: str) -> None:
-    """A nav_rows_* vector is its recording: the committed host outputs after each IMU step are
-    ``core.replay``'s rows bit for bit (the same events in the same order, the same configuration
-    through NAV_INIT_CONFIG's bytes)."""
-    rec, cfg = gv.rows_recording(name)
-    ref = core.replay(rec, cfg)
+    """A vector made from a simulator recording is that recording: the committed host outputs after
+    each IMU step are ``core.replay``'s (``core.ins_replay``'s) rows bit for bit (the same events in the
+    same order, the same configuration through NAV_INIT_CONFIG's or INS_INIT_CONFIG's bytes)."""
+    make, replay, family = RECORDING_VECTORS[name]
+    rec, cfg = make()
+    ref = replay(rec, cfg)
     rows, k, prev = [], -1, None
     for op, payload in gv.read_records(gv.VECTOR_DIR / f"{name}.mcao"):
-        if op == gv.OP["NAV_OUTPUT"] and prev == gv.OP["NAV_IMU"]:
+        if op == gv.OP[f"{family}_OUTPUT"] and prev == gv.OP[f"{family}_IMU"]:
             rows.append((k, np.frombuffer(payload, gv.out_dtype(op))[0]))
-        k += op == gv.OP["NAV_IMU"]
+        k += op == gv.OP[f"{family}_IMU"]
         prev = op
     assert len(rows) >= len(rec.imu) // gv.OUT_EVERY
     idx = np.array([i for i, _ in rows])
     out = np.array([o for _, o in rows])
     assert np.array_equal(out["t_us"], ref["t_us"][idx] + gv.ROWS_T0_US)
-    for field in ("q_nb", "euler_rad", "pos_ned_m", "vel_ned_mps", "acc_ned_mps2", "flags"):
+    fields = ("q_nb", "euler_rad", "pos_ned_m", "vel_ned_mps", "flags")
+    for field in fields + (("acc_ned_mps2",) if family == "NAV" else ("p_diag", "gyro_bias_rps")):
         assert np.array_equal(out[field], ref[field][idx]), field
