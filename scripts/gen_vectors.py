@@ -867,13 +867,21 @@ def scenario_nav_modes() -> VecWriter:
     NAV_MODES, on the CS axes and the attitude filter, each from its own NAV_INIT_CONFIG
     (``core.robust_profile`` at 10 Hz with the receiver model of nav_outliers_rx): FTA's inflation,
     AKF's R and Q scaling, the fuzzy detector rejecting and inflating whole updates, IGG-III's
-    weights, and GPS step 4's return at the end of a position fault the CS took in."""
+    weights, and GPS step 4's return at the end of a position fault the CS took in. Between two
+    flights, two configurations that mca_nav_init refuses (a NaN GPS timeout, an unknown robust mode):
+    status BAD_CONFIG, and the NAV_OUTPUT after them the running filter's."""
     from mcahrs import core
 
     tr, pos_f, vel_f = outlier_flight(NAV_MODES_IMU_DT)
     w = VecWriter()
     for k, mode in enumerate(NAV_MODES):
         over = core.robust_profile(mode, 1.0 / GPS_DT) | {"gps_pos_white_m": 0.8, "gps_alt_white_m": 1.5}
+        if k == 1:
+            for field, value in (("gps_timeout_s", float("nan")), ("mode", 250)):
+                bad = core.nav_config("fixedwing", **over)
+                setattr(bad if field != "mode" else bad.cs_h.robust, field, value)
+                op_nav_init_config(w, bad)
+                w.op("NAV_OUTPUT")
         op_nav_init_config(w, core.nav_config("fixedwing", **over))
         rng = np.random.default_rng(8008 + k)
         ev = nav_events(tr, rng, t0_us=40_000_000 + 20_000_000 * k, latency_s=0.12, faults=(pos_f, vel_f))
