@@ -142,6 +142,13 @@ static uint64_t in_u64(in_t *in)
     return v;
 }
 
+/* n bytes as they are (a configuration struct: NAV_INIT_CONFIG, INS_INIT_CONFIG) */
+static void in_raw(in_t *in, void *v, size_t n)
+{
+    memcpy(v, in->p + in->off, n);
+    in->off += n;
+}
+
 static void in_f32s(in_t *in, float *v, size_t n)
 {
     for (size_t i = 0; i < n; ++i) {
@@ -385,8 +392,7 @@ typedef char rpl_ins_config_fits[RPL_FITS(mca_ins_config_t)];
 static void op_nav_init_config(in_t *in, out_t *out)
 {
     mca_nav_config_t cfg;
-    memcpy(&cfg, in->p + in->off, sizeof(cfg));
-    in->off += sizeof(cfg);
+    in_raw(in, &cfg, sizeof(cfg));
     mca_status_t st;
     MEASURE(RPL_EP_NAV_INIT, st = mca_nav_init(&g_nav, &cfg));
     out_i32(out, (int32_t)st);
@@ -518,8 +524,7 @@ static void op_ins_init_preset(in_t *in, out_t *out)
 static void op_ins_init_config(in_t *in, out_t *out)
 {
     mca_ins_config_t cfg;
-    memcpy(&cfg, in->p + in->off, sizeof(cfg));
-    in->off += sizeof(cfg);
+    in_raw(in, &cfg, sizeof(cfg));
     mca_status_t st;
     MEASURE(RPL_EP_INS_INIT, st = mca_ins_init(&g_ins, &cfg));
     out_i32(out, (int32_t)st);
