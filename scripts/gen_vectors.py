@@ -18,7 +18,8 @@ with magnetometer, faults and a 32-bit time wrap; ``nav_outliers`` with GNSS fau
 fuzzy-rows profile, ``nav_outliers_rx`` the same with the receiver model; ``nav_modes`` the same
 flight under each whole-update robust mode; ``nav_rows_*`` the simulator's car through the rules of
 fuzzy rows that need longer runs or other receiver timings, ROWS_VECTORS); ``ins_fixedwing_turns`` drives the
-loosely-coupled INS (mca_ins.h) through 18 s of a simulated fixed-wing flight (``mcahrs.sim``).
+loosely-coupled INS (mca_ins.h) through 18 s of a simulated fixed-wing flight (``mcahrs.sim``),
+``ins_outliers`` through 62 s of one under GNSS faults.
 
 This module is also the Python side of the format (op codes read from
 ``c_core/firmware/replay_ops.h``, record layouts, readers) and of the builds and runs,
@@ -854,7 +855,7 @@ NAV_MODES = ("fta", "akf", "fuzzy", "fuzzy-inflate", "igg3")
 NAV_MODES_IMU_DT = 0.01  # 100 Hz: five flights in one file under MAX_FILE_BYTES
 
 
-def op_nav_init_config(w: VecWriter, cfg, op: str = "NAV_INIT_CONFIG") -> None:
+def op_init_config(w: VecWriter, cfg, op: str = "NAV_INIT_CONFIG") -> None:
     """NAV_INIT_CONFIG with a ``core.nav_config`` struct (its bytes: float and uint8_t fields), or
     INS_INIT_CONFIG with a ``core.ins_config`` one."""
     from mcahrs.core import ffi
@@ -880,9 +881,9 @@ def scenario_nav_modes() -> VecWriter:
             for field, value in (("gps_timeout_s", float("nan")), ("mode", 250)):
                 bad = core.nav_config("fixedwing", **over)
                 setattr(bad if field != "mode" else bad.cs_h.robust, field, value)
-                op_nav_init_config(w, bad)
+                op_init_config(w, bad)
                 w.op("NAV_OUTPUT")
-        op_nav_init_config(w, core.nav_config("fixedwing", **over))
+        op_init_config(w, core.nav_config("fixedwing", **over))
         rng = np.random.default_rng(8008 + k)
         ev = nav_events(tr, rng, t0_us=40_000_000 + 20_000_000 * k, latency_s=0.12, faults=(pos_f, vel_f))
         nav_ops(w, ev)
@@ -1110,7 +1111,7 @@ def scenario_nav_rows(name: str) -> VecWriter:
     """The car of ROWS_VECTORS[name] under its faults, from a NAV_INIT_CONFIG of fuzzy rows."""
     rec, cfg = rows_recording(name)
     w = VecWriter()
-    op_nav_init_config(w, cfg)
+    op_init_config(w, cfg)
     recording_ops(w, rec, ROWS_T0_US)
     return w
 
@@ -1157,7 +1158,7 @@ def scenario_ins_outliers() -> VecWriter:
     """The INS of ins_outliers_recording from an INS_INIT_CONFIG."""
     rec, cfg = ins_outliers_recording()
     w = VecWriter()
-    op_nav_init_config(w, cfg, "INS_INIT_CONFIG")
+    op_init_config(w, cfg, "INS_INIT_CONFIG")
     recording_ops(w, rec, ROWS_T0_US, "INS", INS_OUT_EVERY)
     return w
 
