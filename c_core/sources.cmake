@@ -7,6 +7,7 @@ set(MCA_CORE_SOURCES
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_geo.c
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_att.c
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_nav.c
+    ${CMAKE_CURRENT_LIST_DIR}/src/mca_profile.c
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_replay.c
     ${CMAKE_CURRENT_LIST_DIR}/src/mca_ins.c
 )

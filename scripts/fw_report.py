@@ -525,6 +525,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     dbl = sum(c["text"] for g, c in g_all.items() if g == "libgcc")
     print(f"    of which libgcc {dbl} B (64-bit conversion and soft-float helpers: see the end)")
+    prof = g_all.get("core mca_profile.c", {})
+    if prof:
+        n = sum(prof.get(k, 0) for k in ("text", "rodata", "data"))
+        print(
+            f"    of which mca_profile.c {n} B: mca_nav_config_robust_profile, the robust profiles as one "
+            "set-up call (mca_profile.h), linked only by an autopilot that calls it"
+        )
     size = subprocess.run(
         ["arm-none-eabi-size", str(elf)], capture_output=True, text=True
     ).stdout.splitlines()[1]

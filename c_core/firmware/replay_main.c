@@ -359,15 +359,11 @@ static void op_nav_init_preset(in_t *in, out_t *out)
         cfg.gps_alt_white_m = 1.5f;
     }
     if (rob_cs == RPL_ROB_FUZZY_ROWS || rob_cs == RPL_ROB_FUZZY_ROWS_RX) {
-        /* the fuzzy-rows profile (docs/ALGORITHMS.md 5, python core.robust_profile) at 10 Hz */
-        mca_cs_config_t *const cs[2] = {&cfg.cs_h, &cfg.cs_v};
-        for (size_t i = 0; i < 2u; ++i) {
-            cs[i]->robust.mode = (uint8_t)MCA_ROBUST_FUZZY;
-            cs[i]->robust.fuzzy_reject = 2u;
-            cs[i]->robust.reject_reset_n = 200u;
-            cs[i]->robust.row_reset_n = 0u;
-            cs[i]->coast = 1u;
-        }
+        /* the fuzzy-rows profile (docs/ALGORITHMS.md 5) at the vectors' 10 Hz on the CS axes; the
+         * attitude filter's mode is rob_att's (below) or the preset's */
+        const uint8_t att_mode = cfg.att.robust.mode;
+        (void)mca_nav_config_robust_profile(&cfg, (uint8_t)MCA_PROFILE_FUZZY_ROWS, 10.0f);
+        cfg.att.robust.mode = att_mode;
     } else if (rob_cs != RPL_KEEP) {
         cfg.cs_h.robust.mode = (uint8_t)(rob_cs > 255u ? 255u : rob_cs);
         cfg.cs_v.robust.mode = cfg.cs_h.robust.mode;

@@ -573,6 +573,17 @@ ROBUST_PROFILES = ("plain", "fta", "akf", "fuzzy", "fuzzy-inflate", "igg3", "fuz
 """The navigation filter's robust set-ups that ``benchmarks/bench_outliers.py`` measures (README,
 GNSS outliers): one robust mode on the CS axes (``cs_h``, ``cs_v``) and the attitude filter."""
 
+PROFILE_NUMBERS: dict[str, int] = {
+    "plain": lib.MCA_PROFILE_PLAIN,
+    "fta": lib.MCA_PROFILE_FTA,
+    "akf": lib.MCA_PROFILE_AKF,
+    "fuzzy": lib.MCA_PROFILE_FUZZY,
+    "fuzzy-inflate": lib.MCA_PROFILE_FUZZY_INFLATE,
+    "igg3": lib.MCA_PROFILE_IGG3,
+    "fuzzy-rows": lib.MCA_PROFILE_FUZZY_ROWS,
+}
+"""The C core's ``mca_robust_profile_t`` of each of :data:`ROBUST_PROFILES`."""
+
 ROWS_GUARD_S = 20.0
 """fuzzy-rows' lock-up guard as a time: about as long as a CS axis without an accelerometer-bias
 estimate coasts through a fault of both before its variance lets the fault back in."""
@@ -618,7 +629,9 @@ def robust_profile(name: str, gps_rate_hz: float = 5.0) -> dict[str, int]:
       filter's one gravity observation takes the fuzzy default, reject.
 
     Apply other overrides after these: ``nav_config(preset, **{**robust_profile(p), **mine})``.
-    Raises BadConfigError for an unknown name or a rate that is not a finite number > 0.
+    Raises BadConfigError for an unknown name or a rate that is not a finite number > 0. The C core
+    sets the same fields with ``mca_nav_config_robust_profile`` (the names' numbers:
+    :data:`PROFILE_NUMBERS`).
     """
     if name not in ROBUST_PROFILES:
         raise errors.BadConfigError(f"unknown robust profile {name!r}; known: {', '.join(ROBUST_PROFILES)}")
@@ -630,7 +643,7 @@ def robust_profile(name: str, gps_rate_hz: float = 5.0) -> dict[str, int]:
     if name == "fuzzy-inflate":
         cs["robust.fuzzy_reject"] = att["robust.fuzzy_reject"] = 0
     elif name == "fuzzy-rows":
-        guard = min(254, max(1, round(ROWS_GUARD_S * gps_rate_hz)))
+        guard = min(254, max(1, math.floor(ROWS_GUARD_S * gps_rate_hz + 0.5)))  # half up, as the C
         cs |= {"robust.fuzzy_reject": 2, "robust.reject_reset_n": guard, "robust.row_reset_n": 0, "coast": 1}
     out = {f"{f}.{k}": v for f in ("cs_h", "cs_v") for k, v in cs.items()}
     return out | {f"att.{k}": v for k, v in att.items()}

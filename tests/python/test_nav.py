@@ -222,6 +222,28 @@ def test_bad_mag_and_config_input() -> None:
         core.nav_config("no_such_vehicle")
 
 
+@pytest.mark.parametrize("preset", ["ground", "fixedwing", "multirotor"])
+def test_c_robust_profiles_are_the_pythons(preset: str) -> None:
+    """mca_nav_config_robust_profile, what an autopilot calls after its preset, sets the fields
+    core.robust_profile's overrides set, and only those, at fix rates from 0.02 to 100 Hz (the
+    whole-update guard of fuzzy rows from its floor of 1 fix to its cap of 254; 0.675 Hz: 13.5
+    fixes, rounded half up on both sides); a bad profile or rate is refused and changes nothing."""
+    for name, number in core.PROFILE_NUMBERS.items():
+        for rate in (0.02, 0.5, 0.675, 1.0, 2.0, 4.0, 5.0, 10.0, 12.7, 100.0):
+            cfg = core.nav_config(preset)
+            assert lib.mca_nav_config_robust_profile(cfg, number, rate) == lib.MCA_OK
+            want = core.nav_config(preset, **core.robust_profile(name, rate))
+            assert bytes(ffi.buffer(cfg)) == bytes(ffi.buffer(want)), (name, rate)
+    rows = {r: core.robust_profile("fuzzy-rows", r) for r in (0.02, 0.675, 100)}
+    assert {r: o["cs_h.robust.reject_reset_n"] for r, o in rows.items()} == {0.02: 1, 0.675: 14, 100: 254}
+    cfg = core.nav_config(preset)
+    before = bytes(ffi.buffer(cfg))
+    for number, rate in ((7, 5.0), (255, 5.0), (6, 0.0), (6, -1.0), (6, float("nan")), (6, float("inf"))):
+        assert lib.mca_nav_config_robust_profile(cfg, number, rate) == lib.MCA_ERR_BAD_ARG
+    assert bytes(ffi.buffer(cfg)) == before
+    assert lib.mca_nav_config_robust_profile(ffi.NULL, 6, 5.0) == lib.MCA_ERR_NULL
+
+
 def test_bad_input_to_the_lower_level_entry_points() -> None:
     att = ffi.new("mca_att_t *")
     cfg = ffi.new("mca_att_config_t *")

@@ -12,6 +12,7 @@
 #include "mca_geo.h"
 #include "mca_att.h"
 #include "mca_nav.h"
+#include "mca_profile.h"
 #include "mca_replay.h"
 #include "mca_ins.h"
 
